@@ -1,0 +1,1 @@
+//! Cut geometry: level sets, classification of tetrahedra, sub-tetrahedra.

@@ -1,0 +1,318 @@
+//! Tetrahedral meshes: the structured box mesher, Tet4 → Tet10 upgrade, and
+//! the geometric queries the rest of the solver needs.
+//!
+//! Node ordering of a Tet10 (the VTK `QUADRATIC_TETRA` order, also used in
+//! `refs/out`): vertices 0–3, then the edge mid-nodes
+//! 4:(0,1) 5:(1,2) 6:(0,2) 7:(0,3) 8:(1,3) 9:(2,3).
+
+use nalgebra::{Matrix3, Point3, Vector3};
+use std::collections::HashMap;
+
+/// Element kind of a mesh: linear or quadratic tetrahedra.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ElementKind {
+    Tet4,
+    Tet10,
+}
+
+impl ElementKind {
+    /// Nodes per element.
+    pub const fn nodes(self) -> usize {
+        match self {
+            ElementKind::Tet4 => 4,
+            ElementKind::Tet10 => 10,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            ElementKind::Tet4 => "tet4",
+            ElementKind::Tet10 => "tet10",
+        }
+    }
+}
+
+/// Vertex pairs of the six Tet10 edge mid-nodes, in node order 4..10.
+pub const TET10_EDGES: [(usize, usize); 6] = [(0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3)];
+
+/// A tetrahedral mesh. `cells` holds `kind.nodes()` node indices per element,
+/// flattened; the first four of each element are its vertices, positively
+/// oriented (`(x1−x0)×(x2−x0)·(x3−x0) > 0`).
+#[derive(Debug, Clone)]
+pub struct TetMesh {
+    pub kind: ElementKind,
+    pub nodes: Vec<Point3<f64>>,
+    pub cells: Vec<usize>,
+}
+
+impl TetMesh {
+    pub fn n_elements(&self) -> usize {
+        self.cells.len() / self.kind.nodes()
+    }
+
+    pub fn n_nodes(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Node indices of element `e`.
+    pub fn element(&self, e: usize) -> &[usize] {
+        let n = self.kind.nodes();
+        &self.cells[e * n..(e + 1) * n]
+    }
+
+    /// The four vertex indices of element `e`.
+    pub fn vertices(&self, e: usize) -> [usize; 4] {
+        let c = self.element(e);
+        [c[0], c[1], c[2], c[3]]
+    }
+
+    /// The four vertex positions of element `e`.
+    pub fn vertex_points(&self, e: usize) -> [Point3<f64>; 4] {
+        self.vertices(e).map(|i| self.nodes[i])
+    }
+
+    /// Signed volume of element `e` (straight-sided).
+    pub fn volume(&self, e: usize) -> f64 {
+        tet_volume(&self.vertex_points(e))
+    }
+
+    /// Axis-aligned bounding box of all nodes.
+    pub fn bounding_box(&self) -> (Point3<f64>, Point3<f64>) {
+        let mut lo = Point3::from([f64::INFINITY; 3]);
+        let mut hi = Point3::from([f64::NEG_INFINITY; 3]);
+        for p in &self.nodes {
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        (lo, hi)
+    }
+
+    /// Characteristic element size: the longest edge of element `e`.
+    pub fn element_size(&self, e: usize) -> f64 {
+        let p = self.vertex_points(e);
+        let mut h: f64 = 0.0;
+        for i in 0..4 {
+            for j in i + 1..4 {
+                h = h.max((p[i] - p[j]).norm());
+            }
+        }
+        h
+    }
+
+    /// Reorders the vertices of negatively oriented elements (swaps vertices
+    /// 1 and 2, and the mid-nodes that go with them) so every volume is positive.
+    pub fn orient_positively(&mut self) {
+        let n = self.kind.nodes();
+        for e in 0..self.n_elements() {
+            if self.volume(e) < 0.0 {
+                let c = &mut self.cells[e * n..(e + 1) * n];
+                c.swap(1, 2);
+                if n == 10 {
+                    // edges (0,1)<->(0,2), (1,3)<->(2,3); (1,2) and (0,3) stay.
+                    c.swap(4, 6);
+                    c.swap(8, 9);
+                }
+            }
+        }
+    }
+
+    /// Tet10 mesh with straight edges: a mid-node on every edge, shared
+    /// between the elements around it. A Tet10 mesh is returned unchanged.
+    pub fn to_tet10(&self) -> TetMesh {
+        if self.kind == ElementKind::Tet10 {
+            return self.clone();
+        }
+        let mut nodes = self.nodes.clone();
+        let mut edge_node: HashMap<(usize, usize), usize> = HashMap::new();
+        let mut cells = Vec::with_capacity(self.n_elements() * 10);
+        for e in 0..self.n_elements() {
+            let v = self.vertices(e);
+            cells.extend_from_slice(&v);
+            for &(a, b) in &TET10_EDGES {
+                let key = (v[a].min(v[b]), v[a].max(v[b]));
+                let id = *edge_node.entry(key).or_insert_with(|| {
+                    nodes.push(Point3::from((nodes[key.0].coords + nodes[key.1].coords) * 0.5));
+                    nodes.len() - 1
+                });
+                cells.push(id);
+            }
+        }
+        TetMesh {
+            kind: ElementKind::Tet10,
+            nodes,
+            cells,
+        }
+    }
+
+    /// The Tet4 mesh of the vertices (mid-nodes dropped, node numbering kept).
+    pub fn corner_cells(&self) -> Vec<[usize; 4]> {
+        (0..self.n_elements()).map(|e| self.vertices(e)).collect()
+    }
+
+    /// Boundary faces (vertex triples, outward oriented) with their element.
+    pub fn boundary_faces(&self) -> Vec<([usize; 3], usize)> {
+        let mut count: HashMap<[usize; 3], (usize, [usize; 3], usize)> = HashMap::new();
+        for e in 0..self.n_elements() {
+            let v = self.vertices(e);
+            for f in TET_FACES {
+                let tri = [v[f[0]], v[f[1]], v[f[2]]];
+                let mut key = tri;
+                key.sort_unstable();
+                count.entry(key).or_insert((0, tri, e)).0 += 1;
+            }
+        }
+        let mut faces: Vec<([usize; 3], usize)> = count
+            .into_values()
+            .filter(|(c, _, _)| *c == 1)
+            .map(|(_, tri, e)| (tri, e))
+            .collect();
+        faces.sort_unstable();
+        faces
+    }
+}
+
+/// Faces of a tetrahedron (local vertex indices), each oriented outward for a
+/// positively oriented element.
+pub const TET_FACES: [[usize; 3]; 4] = [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]];
+
+/// Signed volume of a tetrahedron.
+pub fn tet_volume(p: &[Point3<f64>; 4]) -> f64 {
+    let m = Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]);
+    m.determinant() / 6.0
+}
+
+/// Barycentric coordinates of `x` in the tetrahedron `p`.
+pub fn barycentric(p: &[Point3<f64>; 4], x: &Point3<f64>) -> Option<[f64; 4]> {
+    let m = Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]);
+    let l = m.try_inverse()? * (x - p[0]);
+    Some([1.0 - l.x - l.y - l.z, l.x, l.y, l.z])
+}
+
+/// Structured mesh of the box `[lo, hi]` with `div` hexahedra per axis, each
+/// split into six tetrahedra around its main diagonal (Kuhn / Freudenthal
+/// split), so neighbouring hexes share conforming faces. All volumes positive.
+pub fn box_mesh(lo: Point3<f64>, hi: Point3<f64>, div: [usize; 3]) -> TetMesh {
+    let [nx, ny, nz] = div;
+    let h = Vector3::new(
+        (hi.x - lo.x) / nx as f64,
+        (hi.y - lo.y) / ny as f64,
+        (hi.z - lo.z) / nz as f64,
+    );
+    let id = |i: usize, j: usize, k: usize| i + (nx + 1) * (j + (ny + 1) * k);
+    let mut nodes = Vec::with_capacity((nx + 1) * (ny + 1) * (nz + 1));
+    for k in 0..=nz {
+        for j in 0..=ny {
+            for i in 0..=nx {
+                // The last layer is placed exactly on `hi` (no round-off drift).
+                let c = |n: usize, d: usize, l: f64, u: f64, s: f64| {
+                    if n == d {
+                        u
+                    } else {
+                        l + n as f64 * s
+                    }
+                };
+                nodes.push(Point3::new(
+                    c(i, nx, lo.x, hi.x, h.x),
+                    c(j, ny, lo.y, hi.y, h.y),
+                    c(k, nz, lo.z, hi.z, h.z),
+                ));
+            }
+        }
+    }
+    // The six paths from corner (0,0,0) to (1,1,1), one axis at a time.
+    const PATHS: [[usize; 3]; 6] = [
+        [0, 1, 2],
+        [0, 2, 1],
+        [1, 0, 2],
+        [1, 2, 0],
+        [2, 0, 1],
+        [2, 1, 0],
+    ];
+    let mut cells = Vec::with_capacity(nx * ny * nz * 24);
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
+                for path in PATHS {
+                    let mut c = [i, j, k];
+                    let mut tet = [id(c[0], c[1], c[2]); 4];
+                    for (s, &axis) in path.iter().enumerate() {
+                        c[axis] += 1;
+                        tet[s + 1] = id(c[0], c[1], c[2]);
+                    }
+                    cells.extend_from_slice(&tet);
+                }
+            }
+        }
+    }
+    let mut mesh = TetMesh {
+        kind: ElementKind::Tet4,
+        nodes,
+        cells,
+    };
+    mesh.orient_positively();
+    mesh
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn box_mesh_volumes_are_positive_and_add_up() {
+        let m = box_mesh(Point3::origin(), Point3::new(1.0, 2.0, 3.0), [2, 3, 4]);
+        assert_eq!(m.n_elements(), 2 * 3 * 4 * 6);
+        assert_eq!(m.n_nodes(), 3 * 4 * 5);
+        let total: f64 = (0..m.n_elements()).map(|e| m.volume(e)).sum();
+        assert!((0..m.n_elements()).all(|e| m.volume(e) > 0.0));
+        assert!((total - 6.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn box_mesh_is_conforming() {
+        // Every interior face is shared by exactly two elements: the boundary
+        // faces are then exactly the 2 triangles per boundary quad.
+        let m = box_mesh(Point3::origin(), Point3::new(1.0, 1.0, 1.0), [3, 2, 2]);
+        let b = m.boundary_faces();
+        assert_eq!(b.len(), 2 * 2 * (3 * 2 + 2 * 2 + 3 * 2));
+    }
+
+    #[test]
+    fn tet10_shares_edge_nodes() {
+        let m = box_mesh(Point3::origin(), Point3::new(1.0, 1.0, 1.0), [1, 1, 1]);
+        let q = m.to_tet10();
+        // A cube split into 6 tets has 19 edges: 12 sides, 6 face diagonals, 1 main diagonal.
+        assert_eq!(q.n_nodes(), 8 + 19);
+        for e in 0..q.n_elements() {
+            let c = q.element(e);
+            for (k, &(a, b)) in TET10_EDGES.iter().enumerate() {
+                let mid = (q.nodes[c[a]].coords + q.nodes[c[b]].coords) * 0.5;
+                assert!((q.nodes[c[4 + k]].coords - mid).norm() < 1e-15);
+            }
+        }
+    }
+
+    #[test]
+    fn orientation_fix_keeps_tet10_midnodes_on_their_edges() {
+        let m = box_mesh(Point3::origin(), Point3::new(1.0, 1.0, 1.0), [1, 1, 1]);
+        let mut q = m.to_tet10();
+        // Flip every element, then fix it again.
+        for e in 0..q.n_elements() {
+            let c = &mut q.cells[e * 10..e * 10 + 10];
+            c.swap(1, 2);
+            c.swap(4, 6);
+            c.swap(8, 9);
+        }
+        assert!((0..q.n_elements()).all(|e| q.volume(e) < 0.0));
+        q.orient_positively();
+        for e in 0..q.n_elements() {
+            assert!(q.volume(e) > 0.0);
+            let c = q.element(e);
+            for (k, &(a, b)) in TET10_EDGES.iter().enumerate() {
+                let mid = (q.nodes[c[a]].coords + q.nodes[c[b]].coords) * 0.5;
+                assert!((q.nodes[c[4 + k]].coords - mid).norm() < 1e-15);
+            }
+        }
+    }
+}

@@ -1,0 +1,1 @@
+//! Reading the references written by `refs/` (see `refs/README.md`).
