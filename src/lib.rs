@@ -5,10 +5,23 @@
 //! `../shared/seed` (equation numbers in doc comments refer to it).
 //!
 //! Once vs every step: [`model::Model`] is built once from a scene (element
-//! data, enrichment, sparsity pattern, symbolic factorisation); the solvers in
-//! [`static_solve`] and [`dynamics`] borrow it and allocate nothing per step.
+//! data, enrichment, DOF numbering, sparsity pattern, loads, mass) and
+//! [`solve::Cholesky`] holds the symbolic factorisation; [`statics`] and
+//! [`dynamics`] borrow them and allocate nothing per step.
 
+pub mod assembly;
+pub mod corotation;
 pub mod cut;
+pub mod dynamics;
+pub mod element;
 pub mod io;
+pub mod locate;
+pub mod material;
 pub mod mesh;
+pub mod model;
+pub mod quadrature;
 pub mod reference;
+pub mod run;
+pub mod scene;
+pub mod solve;
+pub mod statics;

@@ -1,0 +1,109 @@
+//! Rotations of the corotational formulation (seed section 3.7, eq. 36–40):
+//! the rotation R of the polar decomposition F = R S of a deformation gradient.
+//!
+//! Robust for near-degenerate and inverted elements: where det F ≤ 0 (or F is
+//! too ill-conditioned for the Newton iteration) the rotation comes from the
+//! SVD with the sign of the smallest singular direction flipped, so R is always
+//! a proper rotation (det R = +1) and never NaN for finite F.
+
+use nalgebra::Matrix3;
+
+/// Rotation of the polar decomposition of `f`, det R = +1.
+///
+/// `guess` is a rotation close to the answer (the previous step's, or I): the
+/// iteration runs on Gᵀ·F, whose polar rotation is near I, so a warm start
+/// converges in two or three Newton steps.
+pub fn polar_rotation(f: &Matrix3<f64>, guess: &Matrix3<f64>) -> Matrix3<f64> {
+    let g = guess.transpose() * f;
+    let det = g.determinant();
+    let scale = g.norm();
+    if !(det.is_finite() && scale.is_finite()) {
+        return *guess;
+    }
+    if scale == 0.0 || det <= 1e-6 * scale * scale * scale {
+        return guess * svd_rotation(&g);
+    }
+    // Higham's scaled Newton iteration X ← (ζX + (ζX)^−T)/2, ζ = |det X|^(−1/3).
+    let mut x = g;
+    for _ in 0..50 {
+        let d = x.determinant();
+        let Some(inv) = x.try_inverse() else {
+            return guess * svd_rotation(&g);
+        };
+        let zeta = d.abs().powf(-1.0 / 3.0);
+        let next = (x * zeta + inv.transpose() / zeta) * 0.5;
+        let change = (next - x).norm();
+        x = next;
+        if change <= 1e-15 * 3f64.sqrt() {
+            break;
+        }
+    }
+    guess * x
+}
+
+/// Proper rotation closest to `f` from its SVD (handles det F ≤ 0).
+fn svd_rotation(f: &Matrix3<f64>) -> Matrix3<f64> {
+    let svd = f.svd(true, true);
+    let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
+        return Matrix3::identity();
+    };
+    let mut u = u;
+    if (u * v_t).determinant() < 0.0 {
+        let k = svd.singular_values.imin();
+        u.column_mut(k).neg_mut();
+    }
+    u * v_t
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Rotation3, Vector3};
+    use proptest::prelude::*;
+
+    fn check_rotation(r: &Matrix3<f64>) {
+        assert!((r.transpose() * r - Matrix3::identity()).norm() < 1e-12);
+        assert!((r.determinant() - 1.0).abs() < 1e-12);
+    }
+
+    proptest! {
+        #[test]
+        fn recovers_the_rotation_of_rotated_stretch(
+            ax in -1.0..1.0f64, ay in -1.0..1.0f64, az in -1.0..1.0f64, angle in 0.0..3.14f64,
+            s1 in 0.3..2.0f64, s2 in 0.3..2.0f64, s3 in 0.3..2.0f64, shear in -0.3..0.3f64,
+        ) {
+            let axis = Vector3::new(ax, ay, az);
+            prop_assume!(axis.norm() > 1e-3);
+            let r = Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(axis), angle).into_inner();
+            let s = Matrix3::new(s1, shear, 0.0, shear, s2, 0.1 * shear, 0.0, 0.1 * shear, s3);
+            prop_assume!(s.symmetric_eigenvalues().min() > 0.05);
+            let f = r * s;
+            for guess in [Matrix3::identity(), r] {
+                let got = polar_rotation(&f, &guess);
+                check_rotation(&got);
+                prop_assert!((got - r).norm() < 1e-10, "{got} vs {r}");
+            }
+        }
+    }
+
+    #[test]
+    fn inverted_and_degenerate_give_proper_rotations() {
+        let cases = [
+            Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, -0.5)),
+            Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, 0.0)),
+            Matrix3::zeros(),
+            Matrix3::new(1.0, 2.0, 3.0, 2.0, 4.0, 6.0, 1.0, 1.0, 1.0),
+            -Matrix3::identity(),
+        ];
+        for f in cases {
+            let r = polar_rotation(&f, &Matrix3::identity());
+            check_rotation(&r);
+        }
+        // A flat element squashed along z keeps the identity rotation.
+        let r = polar_rotation(
+            &Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, -0.5)),
+            &Matrix3::identity(),
+        );
+        assert!((r - Matrix3::identity()).norm() < 1e-12);
+    }
+}

@@ -1,0 +1,770 @@
+//! The precomputed model: everything that is built once from a scene and then
+//! borrowed by every solve and time step.
+//!
+//! An element is a list of *shape functions* (its nodes, then its enriched
+//! nodes) and a list of *integration groups*. A group is a set of points with
+//! one rotation: the whole element (Tet4), one side of a cut element (Tet4,
+//! seed eq. 64–71), or one quadrature point (Tet10). Within a group the shape
+//! gradients ∇φ_a = ψ_a ∇N_a (ψ = 1 for standard DOFs, the shifted Heaviside
+//! value of eq. 58–59 for enriched ones) are stored once, so FEM and X-FEM share
+//! one kernel, and the linear formulation is the corotational one with R = I.
+//!
+//! Global DOFs: shape function `a` owns DOFs 3a..3a+3; shape functions are
+//! numbered nodes first, then enriched nodes (the vector [u₁…u_N a₁…a_Nenr] of
+//! eq. 74). Dirichlet DOFs are eliminated: only free DOFs enter the matrix.
+
+use crate::corotation::polar_rotation;
+use crate::cut::{psi, CutSetup, ElementCut};
+use crate::element::{barycentric_gradients, shape_gradients, shape_values};
+use crate::material::{Lame, Material};
+use crate::mesh::{tet_volume, ElementKind, TetMesh};
+use crate::quadrature::{self, QuadPoint};
+use crate::solve::Pattern;
+use nalgebra::{Matrix3, Point3, Vector3};
+use std::ops::Range;
+
+/// Marker for a DOF that is not in the system (prescribed), or an entry not stored.
+pub const NONE: u32 = u32::MAX;
+
+#[derive(Debug, thiserror::Error)]
+pub enum ModelError {
+    #[error("element {element} is degenerate (volume {volume:e})")]
+    DegenerateElement { element: usize, volume: f64 },
+    #[error("the model has {0} DOFs, more than this solver indexes")]
+    TooLarge(usize),
+}
+
+/// A prescribed value for one global DOF.
+#[derive(Debug, Clone, Copy)]
+pub struct Prescribed {
+    pub dof: usize,
+    pub value: f64,
+}
+
+/// Which integration points share a rotation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Formulation {
+    Linear,
+    Corotational,
+}
+
+/// One integration group: weight (volume it stands for) and where its
+/// gradients start in [`Model::grads`] (one per shape function of the element).
+#[derive(Debug, Clone, Copy)]
+pub struct Group {
+    pub weight: f64,
+    pub grads: u32,
+}
+
+/// Per-element ranges into the model's flat arrays.
+#[derive(Debug, Clone)]
+pub struct ElementData {
+    /// Global shape-function ids of this element (nodes, then enriched nodes).
+    pub shapes: Range<usize>,
+    /// Its integration groups.
+    pub groups: Range<usize>,
+    /// Start of its scatter map ((3m)² CSC positions) in [`Model::scatter`].
+    pub scatter: usize,
+}
+
+/// A boundary traction: force per area on the faces inside a box.
+#[derive(Debug, Clone)]
+pub struct Traction {
+    pub faces: Vec<([usize; 3], usize)>,
+    pub value: Vector3<f64>,
+}
+
+/// What the model is built from (already validated by the scene).
+pub struct ModelInput<'a> {
+    pub mesh: TetMesh,
+    pub material: Material,
+    pub formulation: Formulation,
+    pub cut: Option<CutSetup>,
+    /// Per node: which components are prescribed and their values.
+    pub fixed: Vec<(usize, [Option<f64>; 3])>,
+    pub gravity: Option<Vector3<f64>>,
+    pub tractions: &'a [Traction],
+    /// Whether to build the lumped mass (dynamic scenes only).
+    pub need_mass: bool,
+}
+
+/// Everything built once.
+pub struct Model {
+    pub mesh: TetMesh,
+    pub material: Material,
+    pub lame: Lame,
+    pub formulation: Formulation,
+    pub cut: Option<CutSetup>,
+    /// Number of shape functions (nodes + enriched nodes).
+    pub n_shape: usize,
+    /// Reference position X_a of each shape function (zero for enriched ones).
+    pub shape_ref: Vec<Vector3<f64>>,
+    pub elements: Vec<ElementData>,
+    pub shape_ids: Vec<u32>,
+    pub groups: Vec<Group>,
+    pub grads: Vec<Vector3<f64>>,
+    /// Group index → element index.
+    pub group_element: Vec<u32>,
+    /// Global DOF → equation number, or [`NONE`] if prescribed.
+    pub equation: Vec<u32>,
+    pub n_free: usize,
+    pub prescribed: Vec<Prescribed>,
+    /// Lower-triangular pattern of the free-DOF system.
+    pub pattern: Pattern,
+    /// Per element, (3m)² positions into the CSC values (NONE where not stored).
+    pub scatter: Vec<u32>,
+    /// External force at full load (body force + tractions), all DOFs.
+    pub load: Vec<f64>,
+    /// Lumped mass per shape function (seed eq. 81–82 for enriched ones), if built.
+    pub lumped_mass: Option<Vec<f64>>,
+    /// Consistent mass, lower triangle on the pattern, if built.
+    pub consistent_mass: Option<Vec<f64>>,
+}
+
+/// An integration cell of an element: a (sub-)tetrahedron on one side of the cut.
+struct Cell {
+    vertices: [Point3<f64>; 4],
+    /// +1 / −1 above / below the cut, 0 for an element without enrichment.
+    side: i8,
+}
+
+impl Model {
+    pub fn n_dofs(&self) -> usize {
+        3 * self.n_shape
+    }
+
+    pub fn n_enriched(&self) -> usize {
+        self.cut.as_ref().map_or(0, |c| c.n_enriched)
+    }
+
+    /// Shape functions of element `e` (global ids).
+    pub fn element_shapes(&self, e: usize) -> &[u32] {
+        &self.shape_ids[self.elements[e].shapes.clone()]
+    }
+
+    /// Gradients of group `g` (one per shape function of its element).
+    pub fn group_grads(&self, g: usize) -> &[Vector3<f64>] {
+        let e = self.group_element[g] as usize;
+        let m = self.elements[e].shapes.len();
+        let start = self.groups[g].grads as usize;
+        &self.grads[start..start + m]
+    }
+
+    /// Builds the model: element data, enrichment, DOF numbering, pattern, loads, mass.
+    pub fn build(input: ModelInput<'_>) -> Result<Model, ModelError> {
+        let ModelInput {
+            mesh,
+            material,
+            formulation,
+            cut,
+            fixed,
+            gravity,
+            tractions,
+            need_mass,
+        } = input;
+        let kind = mesh.kind;
+        let n_nodes = mesh.n_nodes();
+        let n_enriched = cut.as_ref().map_or(0, |c| c.n_enriched);
+        let n_shape = n_nodes + n_enriched;
+        if 3 * n_shape >= NONE as usize {
+            return Err(ModelError::TooLarge(3 * n_shape));
+        }
+        let mut shape_ref: Vec<Vector3<f64>> = mesh.nodes.iter().map(|p| p.coords).collect();
+        shape_ref.resize(n_shape, Vector3::zeros());
+
+        let lame = Lame::from(material);
+        let rho = material.density;
+        let nn = kind.nodes();
+        let stiffness_rule = quadrature::rule(match kind {
+            ElementKind::Tet4 => 1,
+            ElementKind::Tet10 => 2,
+        });
+        let load_rule = stiffness_rule;
+        let mass_rule = quadrature::rule(match kind {
+            ElementKind::Tet4 => 2,
+            ElementKind::Tet10 => 4,
+        });
+
+        let mut elements = Vec::with_capacity(mesh.n_elements());
+        let mut shape_ids: Vec<u32> = Vec::with_capacity(mesh.cells.len());
+        let mut groups = Vec::new();
+        let mut group_element = Vec::new();
+        let mut grads = Vec::new();
+        let mut load = vec![0.0; 3 * n_shape];
+        let mut lumped = need_mass.then(|| vec![0.0; n_shape]);
+        // Element-local consistent mass entries (shape a, shape b, value), for the optional consistent mass.
+        let mut mass_entries: Vec<(Range<usize>, Vec<f64>)> = Vec::new();
+
+        let mut scatter_len = 0usize;
+        let mut nvals = [0.0; 10];
+        let mut ngrads = [Vector3::zeros(); 10];
+        for e in 0..mesh.n_elements() {
+            let conn = mesh.element(e);
+            let verts = mesh.vertex_points(e);
+            let volume = tet_volume(&verts);
+            let dl = barycentric_gradients(&verts)
+                .filter(|_| volume > 0.0)
+                .ok_or(ModelError::DegenerateElement { element: e, volume })?;
+
+            // Shape functions: the element's nodes, then its enriched nodes.
+            let first = shape_ids.len();
+            shape_ids.extend(conn.iter().map(|&i| i as u32));
+            let mut enr_local: Vec<usize> = Vec::new();
+            let mut cells: Vec<Cell> = Vec::new();
+            let mut node_side = [0i8; 10];
+            let element_cut = cut.as_ref().map(|c| &c.elements[e]);
+            match (cut.as_ref(), element_cut) {
+                (Some(c), Some(ElementCut::Cut { sub_tets, .. })) => {
+                    for (k, &i) in conn.iter().enumerate() {
+                        node_side[k] = c.node_side[i];
+                        if let Some(j) = c.enriched[i] {
+                            enr_local.push(k);
+                            shape_ids.push((n_nodes + j) as u32);
+                        }
+                    }
+                    cells.extend(sub_tets.iter().map(|s| Cell {
+                        vertices: s.vertices,
+                        side: s.side,
+                    }));
+                }
+                (Some(c), Some(ElementCut::Touched { side })) => {
+                    for (k, &i) in conn.iter().enumerate() {
+                        node_side[k] = c.node_side[i];
+                        if let Some(j) = c.enriched[i] {
+                            if psi(*side, c.node_side[i]) != 0.0 {
+                                enr_local.push(k);
+                                shape_ids.push((n_nodes + j) as u32);
+                            }
+                        }
+                    }
+                    cells.push(Cell {
+                        vertices: verts,
+                        side: *side,
+                    });
+                }
+                _ => cells.push(Cell {
+                    vertices: verts,
+                    side: 0,
+                }),
+            }
+            let m = shape_ids.len() - first;
+            let psi_of = |cell: &Cell, k: usize| -> f64 {
+                if cell.side == 0 {
+                    0.0
+                } else {
+                    psi(cell.side, node_side[k])
+                }
+            };
+
+            // Integration groups: per side for Tet4 (strain constant on a side),
+            // per quadrature point for Tet10.
+            let group_start = groups.len();
+            let mut side_group: [Option<usize>; 3] = [None; 3];
+            for cell in &cells {
+                let cell_volume = tet_volume(&cell.vertices);
+                if cell_volume <= 0.0 {
+                    continue;
+                }
+                for q in stiffness_rule {
+                    let (bary, w) = map_point(&verts, &cell.vertices, q, cell_volume);
+                    shape_gradients(kind, &bary, &dl, &mut ngrads);
+                    let g = match (kind, side_group[(cell.side + 1) as usize]) {
+                        (ElementKind::Tet4, Some(g)) => g,
+                        _ => {
+                            let g = groups.len();
+                            groups.push(Group {
+                                weight: 0.0,
+                                grads: grads.len() as u32,
+                            });
+                            group_element.push(e as u32);
+                            grads.extend(std::iter::repeat_n(Vector3::zeros(), m));
+                            if kind == ElementKind::Tet4 {
+                                side_group[(cell.side + 1) as usize] = Some(g);
+                            }
+                            g
+                        }
+                    };
+                    // For Tet4 all points of a side have the same gradients: store them once.
+                    let gstart = groups[g].grads as usize;
+                    if kind == ElementKind::Tet10 || groups[g].weight == 0.0 {
+                        for k in 0..nn {
+                            grads[gstart + k] = ngrads[k];
+                        }
+                        for (j, &k) in enr_local.iter().enumerate() {
+                            grads[gstart + nn + j] = ngrads[k] * psi_of(cell, k);
+                        }
+                    }
+                    groups[g].weight += w;
+                }
+                // Loads and mass: shape values on the cell.
+                let mut shape_val = vec![0.0; m];
+                if let Some(g) = gravity {
+                    for q in load_rule {
+                        let (bary, w) = map_point(&verts, &cell.vertices, q, cell_volume);
+                        eval_shapes(kind, &bary, &enr_local, |k| psi_of(cell, k), &mut nvals, &mut shape_val);
+                        for (a, &phi) in shape_val.iter().enumerate() {
+                            let s = shape_ids[first + a] as usize;
+                            for c in 0..3 {
+                                load[3 * s + c] += w * rho * g[c] * phi;
+                            }
+                        }
+                    }
+                }
+            }
+            let groups_range = group_start..groups.len();
+
+            if need_mass {
+                // Consistent element mass M_ab = ρ ∫ φ_a φ_b (eq. 77–80), by cell quadrature.
+                let mut me = vec![0.0; m * m];
+                let mut shape_val = vec![0.0; m];
+                for cell in &cells {
+                    let cell_volume = tet_volume(&cell.vertices);
+                    if cell_volume <= 0.0 {
+                        continue;
+                    }
+                    for q in mass_rule {
+                        let (bary, w) = map_point(&verts, &cell.vertices, q, cell_volume);
+                        eval_shapes(kind, &bary, &enr_local, |k| psi_of(cell, k), &mut nvals, &mut shape_val);
+                        for a in 0..m {
+                            for b in 0..m {
+                                me[a * m + b] += rho * w * shape_val[a] * shape_val[b];
+                            }
+                        }
+                    }
+                }
+                if let Some(lumped) = lumped.as_mut() {
+                    lump_element_mass(kind, &me, m, nn, &enr_local, &cells, &verts, node_side, volume, rho, |a| {
+                        shape_ids[first + a] as usize
+                    }, lumped);
+                }
+                mass_entries.push((first..first + m, me));
+            }
+
+            elements.push(ElementData {
+                shapes: first..first + m,
+                groups: groups_range,
+                scatter: scatter_len,
+            });
+            scatter_len += 9 * m * m;
+        }
+
+        // DOF numbering with elimination of prescribed DOFs.
+        let mut equation = vec![0u32; 3 * n_shape];
+        let mut prescribed = Vec::new();
+        for &(node, comps) in &fixed {
+            for (c, v) in comps.iter().enumerate() {
+                if let Some(v) = v {
+                    let dof = 3 * node + c;
+                    if equation[dof] != NONE {
+                        equation[dof] = NONE;
+                        prescribed.push(Prescribed { dof, value: *v });
+                    }
+                }
+            }
+        }
+        let mut n_free = 0usize;
+        for eq in equation.iter_mut() {
+            if *eq != NONE {
+                *eq = n_free as u32;
+                n_free += 1;
+            }
+        }
+
+        // Sparsity pattern of the free system and the element scatter maps.
+        let mut cols: Vec<Vec<usize>> = vec![Vec::new(); n_free];
+        for el in &elements {
+            let dofs = element_equations(&shape_ids[el.shapes.clone()], &equation);
+            for &r in &dofs {
+                if r == NONE {
+                    continue;
+                }
+                for &c in &dofs {
+                    if c != NONE && r >= c {
+                        cols[c as usize].push(r as usize);
+                    }
+                }
+            }
+        }
+        let pattern = Pattern::from_entries(n_free, cols);
+        let mut scatter = vec![NONE; scatter_len];
+        for el in &elements {
+            let dofs = element_equations(&shape_ids[el.shapes.clone()], &equation);
+            let n = dofs.len();
+            for (p, &r) in dofs.iter().enumerate() {
+                for (q, &c) in dofs.iter().enumerate() {
+                    if r != NONE && c != NONE && r >= c {
+                        let pos = pattern
+                            .position(r as usize, c as usize)
+                            .expect("pattern holds every element entry");
+                        scatter[el.scatter + p * n + q] = pos as u32;
+                    }
+                }
+            }
+        }
+
+        // Boundary tractions: ∫ t φ_a over the selected faces (standard shapes only;
+        // faces are of the uncut body).
+        for t in tractions {
+            add_traction(&mesh, t, &mut load);
+        }
+
+        let consistent_mass = need_mass.then(|| {
+            let mut values = vec![0.0; pattern.nnz()];
+            for (el, (range, me)) in elements.iter().zip(&mass_entries) {
+                let m = range.len();
+                for a in 0..m {
+                    for b in 0..m {
+                        for c in 0..3 {
+                            let pos = scatter[el.scatter + (3 * a + c) * 3 * m + 3 * b + c];
+                            if pos != NONE {
+                                values[pos as usize] += me[a * m + b];
+                            }
+                        }
+                    }
+                }
+            }
+            values
+        });
+
+        Ok(Model {
+            mesh,
+            material,
+            lame,
+            formulation,
+            cut,
+            n_shape,
+            shape_ref,
+            elements,
+            shape_ids,
+            groups,
+            grads,
+            group_element,
+            equation,
+            n_free,
+            prescribed,
+            pattern,
+            scatter,
+            load,
+            lumped_mass: lumped,
+            consistent_mass,
+        })
+    }
+
+    /// Displacement of node `i` seen from side `side` of the cut (0: no cut):
+    /// u_i + ψ a_i with ψ the shifted enrichment of that side.
+    pub fn node_displacement(&self, d: &[f64], node: usize, side: i8) -> Vector3<f64> {
+        let mut u = Vector3::new(d[3 * node], d[3 * node + 1], d[3 * node + 2]);
+        if let Some(c) = &self.cut {
+            if let (Some(j), true) = (c.enriched[node], side != 0) {
+                let p = psi(side, c.node_side[node]);
+                let s = self.mesh.n_nodes() + j;
+                u += Vector3::new(d[3 * s], d[3 * s + 1], d[3 * s + 2]) * p;
+            }
+        }
+        u
+    }
+
+    /// Displacement at reference point `x` inside element `e` on side `side`.
+    pub fn displacement_at(&self, d: &[f64], e: usize, x: &Point3<f64>, side: i8) -> Vector3<f64> {
+        let verts = self.mesh.vertex_points(e);
+        let bary = crate::mesh::barycentric(&verts, x).unwrap_or([0.25; 4]);
+        let mut n = [0.0; 10];
+        shape_values(self.mesh.kind, &bary, &mut n);
+        let conn = self.mesh.element(e);
+        let mut u = Vector3::zeros();
+        for (k, &i) in conn.iter().enumerate() {
+            let el_side = match self.cut.as_ref().map(|c| &c.elements[e]) {
+                Some(ElementCut::Cut { .. }) => side,
+                Some(ElementCut::Touched { side }) => *side,
+                _ => 0,
+            };
+            u += self.node_displacement(d, i, el_side) * n[k];
+        }
+        u
+    }
+}
+
+/// Maps reference quadrature point `q` of the cell `cell` (a sub-tet of the
+/// parent `parent`) to barycentric coordinates of the parent and a weight.
+fn map_point(
+    parent: &[Point3<f64>; 4],
+    cell: &[Point3<f64>; 4],
+    q: &QuadPoint,
+    cell_volume: f64,
+) -> ([f64; 4], f64) {
+    let x = cell
+        .iter()
+        .zip(q.bary)
+        .fold(Vector3::zeros(), |s, (p, l)| s + p.coords * l);
+    let bary = if std::ptr::eq(parent, cell) || parent == cell {
+        q.bary
+    } else {
+        crate::mesh::barycentric(parent, &Point3::from(x)).unwrap_or(q.bary)
+    };
+    (bary, q.weight * cell_volume)
+}
+
+/// Values of the element's shape functions (nodes, then enriched ones × ψ).
+fn eval_shapes(
+    kind: ElementKind,
+    bary: &[f64; 4],
+    enr_local: &[usize],
+    psi_of: impl Fn(usize) -> f64,
+    nvals: &mut [f64; 10],
+    out: &mut [f64],
+) {
+    shape_values(kind, bary, nvals);
+    let nn = kind.nodes();
+    out[..nn].copy_from_slice(&nvals[..nn]);
+    for (j, &k) in enr_local.iter().enumerate() {
+        out[nn + j] = nvals[k] * psi_of(k);
+    }
+}
+
+/// Lumped mass of one element into `lumped` (per shape function).
+///
+/// Standard DOFs: row sum for Tet4 (ρV/4 each); HRZ for Tet10 (the diagonal of
+/// the consistent mass scaled to the element mass), because the row sum gives
+/// zero vertex masses on Tet10. Enriched DOFs: seed eq. (82),
+/// M^aa_ii = Σ_cells (V_cell/V) ψ_i² M^uu_ii.
+#[allow(clippy::too_many_arguments)]
+fn lump_element_mass(
+    kind: ElementKind,
+    me: &[f64],
+    m: usize,
+    nn: usize,
+    enr_local: &[usize],
+    cells: &[Cell],
+    _verts: &[Point3<f64>; 4],
+    node_side: [i8; 10],
+    volume: f64,
+    rho: f64,
+    global: impl Fn(usize) -> usize,
+    lumped: &mut [f64],
+) {
+    let total = rho * volume;
+    let mut muu = [0.0; 10];
+    match kind {
+        ElementKind::Tet4 => {
+            for v in muu.iter_mut().take(4) {
+                *v = total / 4.0;
+            }
+        }
+        ElementKind::Tet10 => {
+            let diag_sum: f64 = (0..nn).map(|a| me[a * m + a]).sum();
+            for (a, v) in muu.iter_mut().enumerate().take(nn) {
+                *v = total * me[a * m + a] / diag_sum;
+            }
+        }
+    }
+    for (a, &v) in muu.iter().enumerate().take(nn) {
+        lumped[global(a)] += v;
+    }
+    for (j, &k) in enr_local.iter().enumerate() {
+        let mut factor = 0.0;
+        for cell in cells {
+            let p = if cell.side == 0 { 0.0 } else { psi(cell.side, node_side[k]) };
+            factor += tet_volume(&cell.vertices) / volume * p * p;
+        }
+        lumped[global(nn + j)] += factor * muu[k];
+    }
+}
+
+/// Equation numbers of an element's local DOFs (3 per shape function).
+pub fn element_equations(shapes: &[u32], equation: &[u32]) -> Vec<u32> {
+    shapes
+        .iter()
+        .flat_map(|&s| (0..3).map(move |c| equation[3 * s as usize + c]))
+        .collect()
+}
+
+/// Adds ∫_faces t φ_a dA to `load` (degree-2 triangle rule, exact for Tet10 faces).
+fn add_traction(mesh: &TetMesh, t: &Traction, load: &mut [f64]) {
+    // Three-point triangle rule (degree 2), weights 1/3 of the area.
+    const TRI: [[f64; 3]; 3] = [
+        [2.0 / 3.0, 1.0 / 6.0, 1.0 / 6.0],
+        [1.0 / 6.0, 2.0 / 3.0, 1.0 / 6.0],
+        [1.0 / 6.0, 1.0 / 6.0, 2.0 / 3.0],
+    ];
+    let mut n = [0.0; 10];
+    for &(tri, e) in &t.faces {
+        let verts = mesh.vertices(e);
+        let local: Vec<usize> = tri
+            .iter()
+            .map(|v| verts.iter().position(|w| w == v).unwrap_or(0))
+            .collect();
+        let p: Vec<Point3<f64>> = tri.iter().map(|&i| mesh.nodes[i]).collect();
+        let area = 0.5 * (p[1] - p[0]).cross(&(p[2] - p[0])).norm();
+        for r in TRI {
+            let mut bary = [0.0; 4];
+            for (k, &l) in local.iter().enumerate() {
+                bary[l] = r[k];
+            }
+            shape_values(mesh.kind, &bary, &mut n);
+            for (k, &node) in mesh.element(e).iter().enumerate() {
+                for c in 0..3 {
+                    load[3 * node + c] += area / 3.0 * t.value[c] * n[k];
+                }
+            }
+        }
+    }
+}
+
+/// Per-group kernel: deformation gradient, rotation, stress, forces, tangent.
+///
+/// Seed eq. (36)–(40): f = R K (Rᵀx − x₀), tangent R K Rᵀ, with K of eq. (30).
+/// K_ab = w (λ g_a g_bᵀ + μ g_b g_aᵀ + μ (g_a·g_b) I), so R K_ab Rᵀ is built from
+/// the rotated gradients R g_a without storing K.
+pub struct GroupKernel<'a> {
+    pub lame: Lame,
+    pub weight: f64,
+    pub grads: &'a [Vector3<f64>],
+    pub rotation: Matrix3<f64>,
+}
+
+impl<'a> GroupKernel<'a> {
+    /// Deformation gradient F = I + Σ_a d_a ⊗ ∇φ_a of the group.
+    pub fn deformation_gradient(grads: &[Vector3<f64>], disp: impl Fn(usize) -> Vector3<f64>) -> Matrix3<f64> {
+        let mut f = Matrix3::identity();
+        for (a, g) in grads.iter().enumerate() {
+            f += disp(a) * g.transpose();
+        }
+        f
+    }
+
+    /// Local (unrotated) small strain ε = sym(RᵀF) − I.
+    pub fn strain(&self, f: &Matrix3<f64>) -> Matrix3<f64> {
+        let rf = self.rotation.transpose() * f;
+        (rf + rf.transpose()) * 0.5 - Matrix3::identity()
+    }
+
+    /// Stress σ = λ tr(ε) I + 2μ ε.
+    pub fn stress(&self, eps: &Matrix3<f64>) -> Matrix3<f64> {
+        Matrix3::identity() * (self.lame.lambda * eps.trace()) + eps * (2.0 * self.lame.mu)
+    }
+
+    /// Strain energy of the group, w (μ ε:ε + λ/2 tr(ε)²).
+    pub fn energy(&self, eps: &Matrix3<f64>) -> f64 {
+        self.weight * (self.lame.mu * eps.norm_squared() + 0.5 * self.lame.lambda * eps.trace().powi(2))
+    }
+
+    /// Internal forces f_a = w R σ ∇φ_a (adds to `out`, one per shape function).
+    pub fn add_forces(&self, sigma: &Matrix3<f64>, mut out: impl FnMut(usize, Vector3<f64>)) {
+        let rs = self.rotation * sigma * self.weight;
+        for (a, g) in self.grads.iter().enumerate() {
+            out(a, rs * g);
+        }
+    }
+
+    /// Adds the tangent R K Rᵀ into the dense element matrix `k` (3m × 3m, row-major).
+    pub fn add_tangent(&self, k: &mut [f64], rotated: &mut [Vector3<f64>]) {
+        let m = self.grads.len();
+        let n = 3 * m;
+        let (lambda, mu, w) = (self.lame.lambda, self.lame.mu, self.weight);
+        for (r, g) in rotated.iter_mut().zip(self.grads) {
+            *r = self.rotation * g;
+        }
+        for a in 0..m {
+            let ra = rotated[a] * w;
+            for b in 0..m {
+                let rb = rotated[b];
+                let dot = mu * w * self.grads[a].dot(&self.grads[b]);
+                for i in 0..3 {
+                    let row = (3 * a + i) * n + 3 * b;
+                    for j in 0..3 {
+                        let mut v = lambda * ra[i] * rb[j] + mu * rb[i] * ra[j];
+                        if i == j {
+                            v += dot;
+                        }
+                        k[row + j] += v;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Rotation of a group for the formulation (identity for linear).
+pub fn group_rotation(formulation: Formulation, f: &Matrix3<f64>, guess: &Matrix3<f64>) -> Matrix3<f64> {
+    match formulation {
+        Formulation::Linear => Matrix3::identity(),
+        Formulation::Corotational => polar_rotation(f, guess),
+    }
+}
+
+impl Model {
+    /// Parts of the body held by no Dirichlet condition, described for an error message.
+    ///
+    /// Regions are (element, side) pairs; two regions that share a node and see
+    /// the same DOFs there (the same ψ of its enrichment) belong to one part, so
+    /// a cut that separates the body makes two parts.
+    pub fn free_parts(&self) -> Vec<String> {
+        let mesh = &self.mesh;
+        let mut regions: Vec<(usize, i8)> = Vec::new();
+        for e in 0..mesh.n_elements() {
+            match self.cut.as_ref().map(|c| &c.elements[e]) {
+                Some(ElementCut::Cut { .. }) => {
+                    regions.push((e, 1));
+                    regions.push((e, -1));
+                }
+                Some(ElementCut::Touched { side }) => regions.push((e, *side)),
+                _ => regions.push((e, 0)),
+            }
+        }
+        let mut parent: Vec<usize> = (0..regions.len()).collect();
+        fn find(p: &mut [usize], mut i: usize) -> usize {
+            while p[i] != i {
+                p[i] = p[p[i]];
+                i = p[i];
+            }
+            i
+        }
+        // Key (node, ψ in the region) → first region seen with it.
+        let mut first: std::collections::HashMap<(usize, i8), usize> = std::collections::HashMap::new();
+        let mut held = vec![false; regions.len()];
+        let is_fixed = |node: usize| self.prescribed_nodes_contains(node);
+        for (r, &(e, side)) in regions.iter().enumerate() {
+            for &node in mesh.element(e) {
+                let p = match &self.cut {
+                    Some(c) if side != 0 && c.enriched[node].is_some() => psi(side, c.node_side[node]) as i8,
+                    _ => 0,
+                };
+                if p == 0 && is_fixed(node) {
+                    held[r] = true;
+                }
+                match first.entry((node, p)) {
+                    std::collections::hash_map::Entry::Occupied(o) => {
+                        let (a, b) = (find(&mut parent, r), find(&mut parent, *o.get()));
+                        parent[a] = b;
+                    }
+                    std::collections::hash_map::Entry::Vacant(v) => {
+                        v.insert(r);
+                    }
+                }
+            }
+        }
+        let mut part_held: std::collections::HashMap<usize, (bool, usize, Vector3<f64>)> = std::collections::HashMap::new();
+        for r in 0..regions.len() {
+            let root = find(&mut parent, r);
+            let entry = part_held.entry(root).or_insert((false, 0, Vector3::zeros()));
+            entry.0 |= held[r];
+            entry.1 += 1;
+            let c = mesh.vertex_points(regions[r].0).iter().fold(Vector3::zeros(), |s, p| s + p.coords) / 4.0;
+            entry.2 += c;
+        }
+        let mut free: Vec<String> = part_held
+            .values()
+            .filter(|(h, _, _)| !h)
+            .map(|(_, n, c)| {
+                let c = c / *n as f64;
+                format!("{n} element regions around ({:.4}, {:.4}, {:.4}) touch no [[fix]]", c.x, c.y, c.z)
+            })
+            .collect();
+        free.sort();
+        free
+    }
+
+    fn prescribed_nodes_contains(&self, node: usize) -> bool {
+        (0..3).any(|c| self.equation[3 * node + c] == NONE)
+    }
+}

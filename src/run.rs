@@ -1,0 +1,137 @@
+//! One run of a scene at one level: build, solve, evaluate probes, write outputs.
+
+use crate::dynamics::{DynamicError, Energies, Newmark};
+use crate::locate::Locator;
+use crate::model::Model;
+use crate::scene::{Analysis, Plan, Scene, SceneError};
+use crate::solve::{Cholesky, SolveError};
+use crate::statics::{solve_static, StaticError};
+use nalgebra::{Point3, Vector3};
+use std::path::Path;
+use std::time::Instant;
+
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    #[error("{file}: {source}")]
+    Solve { file: String, source: SolveError },
+    #[error("{file}: {source}")]
+    Static { file: String, source: StaticError },
+    #[error("{file}: {source}")]
+    Dynamic { file: String, source: DynamicError },
+    #[error("{file}: probe {index} at ({x}, {y}, {z}) lies outside the body")]
+    ProbeOutside { file: String, index: usize, x: f64, y: f64, z: f64 },
+    #[error("writing output: {0}")]
+    Output(String),
+}
+
+/// Timings of a run (seconds).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Timings {
+    pub mesh: f64,
+    pub cut: f64,
+    pub model: f64,
+    pub symbolic: f64,
+    /// Static: the whole solve. Dynamic: all steps.
+    pub solve: f64,
+    pub steps: usize,
+}
+
+/// A finished run: the model, its solution and what was measured.
+pub struct RunResult {
+    pub model: Model,
+    pub plan: Plan,
+    pub d: Vec<f64>,
+    pub timings: Timings,
+    pub iterations: Vec<usize>,
+    pub residual: f64,
+    pub factorisations: usize,
+    /// Dynamic runs: (time, displacement) frames kept for output.
+    pub frames: Vec<(f64, Vec<f64>)>,
+    pub energies: Vec<(f64, Energies)>,
+}
+
+/// Solves `scene` at `level` (or on `mesh_override`).
+pub fn solve_scene(scene: &Scene, level: usize, mesh_override: Option<&Path>, keep_frames: bool) -> Result<RunResult, RunError> {
+    let file = scene.file.display().to_string();
+    let t0 = Instant::now();
+    let mesh = match mesh_override {
+        Some(p) => {
+            let m = scene.read_mesh(p)?;
+            if scene.element == crate::mesh::ElementKind::Tet10 { m.to_tet10() } else { m }
+        }
+        None => scene.mesh(level)?,
+    };
+    let t_mesh = t0.elapsed().as_secs_f64();
+    let (model, plan) = scene.build(mesh)?;
+    let t1 = Instant::now();
+    let chol = Cholesky::new(&model.pattern).map_err(|source| RunError::Solve { file: file.clone(), source })?;
+    let t_symbolic = t1.elapsed().as_secs_f64();
+    let mut timings = Timings { mesh: t_mesh, cut: plan.times[1], model: plan.times[0] + plan.times[2], symbolic: t_symbolic, solve: 0.0, steps: 0 };
+    let t2 = Instant::now();
+    match &scene.analysis {
+        Analysis::Static(opts) => {
+            let mut chol = chol;
+            let sol = solve_static(&model, &mut chol, opts).map_err(|source| RunError::Static { file: file.clone(), source })?;
+            timings.solve = t2.elapsed().as_secs_f64();
+            Ok(RunResult { model, plan, d: sol.d, timings, iterations: sol.iterations, residual: sol.residual, factorisations: sol.factorisations, frames: Vec::new(), energies: Vec::new() })
+        }
+        Analysis::Dynamic { options, output_every } => {
+            let mut nm = Newmark::new(&model, chol, *options).map_err(|source| RunError::Dynamic { file: file.clone(), source })?;
+            let mut frames = Vec::new();
+            let mut energies = Vec::new();
+            let mut iterations = Vec::with_capacity(options.steps);
+            let mut residual: f64 = 0.0;
+            if keep_frames {
+                frames.push((0.0, nm.state.d.clone()));
+            }
+            energies.push((0.0, nm.energies()));
+            for step in 1..=options.steps {
+                let r = nm.step().map_err(|source| RunError::Dynamic { file: file.clone(), source })?;
+                iterations.push(r.iterations);
+                residual = residual.max(r.residual);
+                if step % output_every == 0 || step == options.steps {
+                    if keep_frames {
+                        frames.push((nm.state.time, nm.state.d.clone()));
+                    }
+                    energies.push((nm.state.time, nm.energies()));
+                }
+            }
+            timings.solve = t2.elapsed().as_secs_f64();
+            timings.steps = options.steps;
+            let d = nm.state.d.clone();
+            let factorisations = nm.factorisations();
+            drop(nm);
+            Ok(RunResult { model, plan, d, timings, iterations, residual, factorisations, frames, energies })
+        }
+    }
+}
+
+/// Displacement at reference point `x`: located in the mesh; in a cut element
+/// the side is the sign of the level set there (on the cut: the + side).
+pub fn evaluate_at(model: &Model, locator: &Locator, d: &[f64], x: &Point3<f64>) -> Option<Vector3<f64>> {
+    let (e, bary) = locator.locate(&model.mesh, x)?;
+    let side = match &model.cut {
+        Some(c) => {
+            let v = model.mesh.vertices(e);
+            let phi: f64 = v.iter().zip(bary).map(|(&i, l)| c.phi[i] * l).sum();
+            if phi >= 0.0 { 1 } else { -1 }
+        }
+        None => 0,
+    };
+    Some(model.displacement_at(d, e, x, side))
+}
+
+/// Probe displacements of a finished run.
+pub fn probe_values(scene: &Scene, result: &RunResult) -> Result<Vec<Vector3<f64>>, RunError> {
+    let locator = Locator::new(&result.model.mesh);
+    scene
+        .probes
+        .iter()
+        .enumerate()
+        .map(|(index, p)| {
+            evaluate_at(&result.model, &locator, &result.d, p).ok_or(RunError::ProbeOutside { file: scene.file.display().to_string(), index, x: p.x, y: p.y, z: p.z })
+        })
+        .collect()
+}

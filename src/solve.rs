@@ -1,0 +1,210 @@
+//! The global sparse linear algebra: every faer call of the crate lives here.
+//!
+//! The stiffness (or effective dynamic stiffness) is stored as the lower
+//! triangle of a CSC matrix on the free DOFs. The symbolic Cholesky
+//! factorisation (AMD ordering, supernodal or simplicial as faer decides) is
+//! computed once per pattern; each numeric factorisation reuses its `L`
+//! buffer and scratch memory, so a time step allocates nothing.
+
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::sparse::linalg::cholesky::{
+    factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky,
+    SymmetricOrdering,
+};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{Conj, MatMut, Par, Side, Spec};
+
+#[derive(Debug, thiserror::Error)]
+pub enum SolveError {
+    #[error("symbolic factorisation failed: {0}")]
+    Symbolic(String),
+    #[error("the system matrix is not positive definite (a part may be free to move, or elements are degenerate)")]
+    NotPositiveDefinite,
+}
+
+/// Lower-triangular CSC sparsity pattern of a symmetric matrix (rows sorted in each column).
+#[derive(Debug, Clone, Default)]
+pub struct Pattern {
+    pub n: usize,
+    pub col_ptr: Vec<usize>,
+    pub row_idx: Vec<usize>,
+}
+
+impl Pattern {
+    /// Builds the pattern from `(row, col)` entries with `row >= col` (duplicates allowed).
+    pub fn from_entries(n: usize, cols: Vec<Vec<usize>>) -> Pattern {
+        let mut col_ptr = Vec::with_capacity(n + 1);
+        let mut row_idx = Vec::new();
+        col_ptr.push(0);
+        for mut rows in cols {
+            rows.sort_unstable();
+            rows.dedup();
+            row_idx.extend_from_slice(&rows);
+            col_ptr.push(row_idx.len());
+        }
+        Pattern {
+            n,
+            col_ptr,
+            row_idx,
+        }
+    }
+
+    pub fn nnz(&self) -> usize {
+        self.row_idx.len()
+    }
+
+    /// Position of entry (row, col), row >= col, in the value array.
+    pub fn position(&self, row: usize, col: usize) -> Option<usize> {
+        let (lo, hi) = (self.col_ptr[col], self.col_ptr[col + 1]);
+        self.row_idx[lo..hi]
+            .binary_search(&row)
+            .ok()
+            .map(|k| lo + k)
+    }
+
+    fn symbolic(&self) -> SymbolicSparseColMatRef<'_, usize> {
+        // SAFETY-free constructor: faer checks the invariants.
+        SymbolicSparseColMatRef::new_checked(self.n, self.n, &self.col_ptr, None, &self.row_idx)
+    }
+
+    /// y += A x for the symmetric matrix whose lower triangle is `values`.
+    pub fn sym_mul_add(&self, values: &[f64], x: &[f64], y: &mut [f64]) {
+        for c in 0..self.n {
+            let xc = x[c];
+            let mut acc = 0.0;
+            for k in self.col_ptr[c]..self.col_ptr[c + 1] {
+                let r = self.row_idx[k];
+                let v = values[k];
+                y[r] += v * xc;
+                if r != c {
+                    acc += v * x[r];
+                }
+            }
+            y[c] += acc;
+        }
+    }
+}
+
+/// Sparse Cholesky LLᵀ with the symbolic analysis done once.
+pub struct Cholesky {
+    pattern: Pattern,
+    symbolic: SymbolicCholesky<usize>,
+    l_values: Vec<f64>,
+    factor_mem: MemBuffer,
+    solve_mem: MemBuffer,
+    factored: bool,
+    /// Number of numeric factorisations done (a work counter tests can pin).
+    pub factorisations: usize,
+}
+
+impl Cholesky {
+    /// Symbolic factorisation of `pattern` (once per pattern).
+    pub fn new(pattern: &Pattern) -> Result<Cholesky, SolveError> {
+        let symbolic = factorize_symbolic_cholesky(
+            pattern.symbolic(),
+            Side::Lower,
+            SymmetricOrdering::Amd,
+            CholeskySymbolicParams::default(),
+        )
+        .map_err(|e| SolveError::Symbolic(format!("{e:?}")))?;
+        let factor_req = symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Spec::default());
+        let solve_req = symbolic.solve_in_place_scratch::<f64>(1, Par::Seq);
+        Ok(Cholesky {
+            pattern: pattern.clone(),
+            l_values: vec![0.0; symbolic.len_val()],
+            symbolic,
+            factor_mem: MemBuffer::new(factor_req),
+            solve_mem: MemBuffer::new(solve_req),
+            factored: false,
+            factorisations: 0,
+        })
+    }
+
+    /// Number of non-zeros of the factor L.
+    pub fn factor_nnz(&self) -> usize {
+        self.l_values.len()
+    }
+
+    /// Numeric factorisation of the matrix with the lower-triangle `values`.
+    pub fn factorize(&mut self, values: &[f64]) -> Result<(), SolveError> {
+        let p = &self.pattern;
+        let a = SparseColMatRef::new(p.symbolic(), values);
+        self.factored = false;
+        self.symbolic
+            .factorize_numeric_llt(
+                &mut self.l_values,
+                a,
+                Side::Lower,
+                LltRegularization::default(),
+                Par::Seq,
+                MemStack::new(&mut self.factor_mem),
+                Spec::default(),
+            )
+            .map_err(|_| SolveError::NotPositiveDefinite)?;
+        if self.l_values.iter().any(|v| !v.is_finite()) {
+            return Err(SolveError::NotPositiveDefinite);
+        }
+        self.factored = true;
+        self.factorisations += 1;
+        Ok(())
+    }
+
+    /// Solves A x = b in place (b ← x) with the last factorisation.
+    pub fn solve_in_place(&mut self, b: &mut [f64]) {
+        assert!(self.factored, "solve before a successful factorisation");
+        let llt = LltRef::<usize, f64>::new(&self.symbolic, &self.l_values);
+        let n = b.len();
+        let rhs = MatMut::from_column_major_slice_mut(b, n, 1);
+        llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(&mut self.solve_mem));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// 1-D Laplacian with a Dirichlet end: tridiagonal SPD.
+    fn laplacian(n: usize) -> (Pattern, Vec<f64>) {
+        let cols = (0..n)
+            .map(|c| if c + 1 < n { vec![c, c + 1] } else { vec![c] })
+            .collect();
+        let p = Pattern::from_entries(n, cols);
+        let mut v = vec![0.0; p.nnz()];
+        for c in 0..n {
+            v[p.position(c, c).unwrap()] = 2.0;
+            if c + 1 < n {
+                v[p.position(c + 1, c).unwrap()] = -1.0;
+            }
+        }
+        (p, v)
+    }
+
+    #[test]
+    fn cholesky_solves_and_refactorises_without_new_symbolic() {
+        let n = 50;
+        let (p, mut v) = laplacian(n);
+        let mut chol = Cholesky::new(&p).unwrap();
+        for scale in [1.0, 3.0] {
+            for x in v.iter_mut() {
+                *x *= scale;
+            }
+            chol.factorize(&v).unwrap();
+            let x_true: Vec<f64> = (0..n).map(|i| (i as f64).sin()).collect();
+            let mut b = vec![0.0; n];
+            p.sym_mul_add(&v, &x_true, &mut b);
+            chol.solve_in_place(&mut b);
+            let err: f64 = b.iter().zip(&x_true).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+            assert!(err < 1e-10, "error {err}");
+        }
+        assert_eq!(chol.factorisations, 2);
+    }
+
+    #[test]
+    fn indefinite_matrix_is_reported() {
+        let (p, mut v) = laplacian(5);
+        v[p.position(2, 2).unwrap()] = -4.0;
+        let mut chol = Cholesky::new(&p).unwrap();
+        assert!(matches!(chol.factorize(&v), Err(SolveError::NotPositiveDefinite)));
+    }
+}

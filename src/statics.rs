@@ -1,0 +1,135 @@
+//! Static equilibrium: one solve for the linear formulation, Newton with load
+//! steps for the corotational one (seed section 3.7).
+
+use crate::assembly::{evaluate, gather_free, scatter_free_add, Request, Rotations, Workspace};
+use crate::model::{Formulation, Model};
+use crate::solve::{Cholesky, SolveError};
+
+/// Options of the static solve.
+#[derive(Debug, Clone, Copy)]
+pub struct StaticOptions {
+    /// Load steps (corotational only; the linear solve needs one).
+    pub load_steps: usize,
+    /// Relative residual tolerance of Newton.
+    pub tolerance: f64,
+    pub max_iterations: usize,
+}
+
+impl Default for StaticOptions {
+    fn default() -> Self {
+        StaticOptions {
+            load_steps: 10,
+            tolerance: 1e-10,
+            max_iterations: 50,
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum StaticError {
+    #[error(transparent)]
+    Solve(#[from] SolveError),
+    #[error("Newton did not converge in load step {step}: relative residual {residual:e} after {iterations} iterations")]
+    NoConvergence {
+        step: usize,
+        iterations: usize,
+        residual: f64,
+    },
+    #[error("the solution is not finite (NaN or inf)")]
+    NotFinite,
+}
+
+/// Result of a static solve.
+#[derive(Debug, Clone)]
+pub struct StaticSolution {
+    /// Displacement, all DOFs (standard and enriched).
+    pub d: Vec<f64>,
+    /// Newton iterations per load step.
+    pub iterations: Vec<usize>,
+    /// Final relative residual ‖r_free‖ / max(‖f_ext‖, ‖f_int‖).
+    pub residual: f64,
+    /// Strain energy at the solution.
+    pub energy: f64,
+    /// Numeric factorisations performed.
+    pub factorisations: usize,
+    pub rotations: Rotations,
+}
+
+/// Solves the static problem; `chol` holds the symbolic factorisation of the model's pattern.
+pub fn solve_static(model: &Model, chol: &mut Cholesky, opts: &StaticOptions) -> Result<StaticSolution, StaticError> {
+    let n = model.n_dofs();
+    let linear = model.formulation == Formulation::Linear;
+    let steps = if linear { 1 } else { opts.load_steps.max(1) };
+    let mut d = vec![0.0; n];
+    let mut f_int = vec![0.0; n];
+    let mut r_free = vec![0.0; model.n_free];
+    let mut tangent = vec![0.0; model.pattern.nnz()];
+    let mut rot = Rotations::identity(model);
+    let mut ws = Workspace::new(model);
+    let mut iterations = Vec::with_capacity(steps);
+    let mut residual = f64::INFINITY;
+    let factor_start = chol.factorisations;
+    let mut energy = 0.0;
+    for step in 1..=steps {
+        let lambda = step as f64 / steps as f64;
+        for p in &model.prescribed {
+            d[p.dof] = lambda * p.value;
+        }
+        let mut it = 0;
+        loop {
+            // For the linear formulation the tangent is constant: assemble and factorise once.
+            let want_tangent = !linear || chol.factorisations == factor_start;
+            energy = evaluate(
+                model,
+                &d,
+                &mut rot,
+                &mut ws,
+                Request {
+                    forces: Some(&mut f_int),
+                    tangent: want_tangent.then_some(&mut tangent[..]),
+                    update_rotations: !linear,
+                },
+            );
+            let mut r_full: Vec<f64> = model.load.iter().zip(&f_int).map(|(l, f)| lambda * l - f).collect();
+            gather_free(model, &r_full, &mut r_free);
+            let scale = norm(&model.load).max(norm(&f_int)).max(f64::MIN_POSITIVE);
+            residual = norm(&r_free) / scale;
+            if !residual.is_finite() {
+                return Err(StaticError::NotFinite);
+            }
+            if residual <= opts.tolerance || (linear && it == 1) {
+                break;
+            }
+            if it == opts.max_iterations {
+                return Err(StaticError::NoConvergence {
+                    step,
+                    iterations: it,
+                    residual,
+                });
+            }
+            if want_tangent {
+                chol.factorize(&tangent)?;
+            }
+            chol.solve_in_place(&mut r_free);
+            r_full.fill(0.0);
+            scatter_free_add(model, &r_free, &mut d);
+            it += 1;
+        }
+        iterations.push(it);
+    }
+    if d.iter().any(|v| !v.is_finite()) {
+        return Err(StaticError::NotFinite);
+    }
+    Ok(StaticSolution {
+        d,
+        iterations,
+        residual,
+        energy,
+        factorisations: chol.factorisations - factor_start,
+        rotations: rot,
+    })
+}
+
+pub fn norm(v: &[f64]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
