@@ -1,1 +1,134 @@
-fn main(){}
+//! Criterion benches: precompute and one time step, linear and corotational, Tet4 and Tet10.
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use nalgebra::{Point3, Vector3};
+use std::hint::black_box;
+use xfem_cut::assembly::{evaluate, Request, Rotations, Workspace};
+use xfem_cut::dynamics::{DynamicOptions, Newmark};
+use xfem_cut::material::Material;
+use xfem_cut::mesh::{box_mesh, TetMesh};
+use xfem_cut::model::{Formulation, Model, ModelInput};
+use xfem_cut::solve::Cholesky;
+
+const MAT: Material = Material {
+    young: 3.0e5,
+    poisson: 0.35,
+    density: 1070.0,
+};
+
+/// The seed's beam with `div` hexes per axis, bottom clamped, gravity in +x.
+fn beam(div: [usize; 3], tet10: bool) -> TetMesh {
+    let m = box_mesh(Point3::origin(), Point3::new(0.03, 0.06, 0.2), div);
+    if tet10 {
+        m.to_tet10()
+    } else {
+        m
+    }
+}
+
+fn model(mesh: TetMesh, formulation: Formulation) -> Model {
+    let fixed = mesh
+        .nodes
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.z.abs() < 1e-12)
+        .map(|(i, _)| (i, [Some(0.0); 3]))
+        .collect();
+    Model::build(ModelInput {
+        mesh,
+        material: MAT,
+        formulation,
+        cut: None,
+        fixed,
+        gravity: Some(Vector3::new(9.81, 0.0, 0.0)),
+        tractions: &[],
+        need_mass: true,
+    })
+    .unwrap()
+}
+
+fn benches(c: &mut Criterion) {
+    let sizes = [
+        ("1k", [3, 6, 10], false),
+        ("10k", [6, 12, 24], false),
+        ("1k", [3, 6, 10], true),
+    ];
+    let mut g = c.benchmark_group("precompute");
+    g.sample_size(10);
+    for (label, div, tet10) in sizes {
+        let kind = if tet10 { "tet10" } else { "tet4" };
+        g.bench_function(
+            BenchmarkId::new(format!("model+symbolic/{kind}"), label),
+            |b| {
+                b.iter(|| {
+                    let m = model(beam(div, tet10), Formulation::Corotational);
+                    let chol = Cholesky::new(&m.pattern).unwrap();
+                    black_box((m.n_free, chol.factor_nnz()))
+                })
+            },
+        );
+    }
+    g.finish();
+
+    let mut g = c.benchmark_group("step");
+    g.sample_size(10);
+    for (label, div, tet10) in sizes {
+        let kind = if tet10 { "tet10" } else { "tet4" };
+        for formulation in [Formulation::Linear, Formulation::Corotational] {
+            let m = model(beam(div, tet10), formulation);
+            let name = format!(
+                "{}/{kind}/{}tets",
+                if formulation == Formulation::Linear {
+                    "linear"
+                } else {
+                    "corotational"
+                },
+                m.mesh.n_elements()
+            );
+            let chol = Cholesky::new(&m.pattern).unwrap();
+            let opts = DynamicOptions {
+                dt: 0.01,
+                steps: 1,
+                max_iterations: 1,
+                ..DynamicOptions::default()
+            };
+            let mut nm = Newmark::new(&m, chol, opts).unwrap();
+            nm.step().unwrap();
+            g.bench_function(BenchmarkId::new(name, label), |b| {
+                b.iter(|| black_box(nm.step().unwrap()))
+            });
+        }
+        // The assembly alone (rotations + forces + tangent) for the corotational step.
+        let m = model(beam(div, tet10), Formulation::Corotational);
+        let d = vec![1e-3; m.n_dofs()];
+        let mut rot = Rotations::identity(&m);
+        let mut ws = Workspace::new(&m);
+        let mut f = vec![0.0; m.n_dofs()];
+        let mut k = vec![0.0; m.pattern.nnz()];
+        g.bench_function(
+            BenchmarkId::new(
+                format!("corotational-assembly/{kind}/{}tets", m.mesh.n_elements()),
+                label,
+            ),
+            |b| {
+                b.iter(|| {
+                    black_box(evaluate(
+                        &m,
+                        &d,
+                        &mut rot,
+                        &mut ws,
+                        Request {
+                            forces: Some(&mut f),
+                            tangent: Some(&mut k),
+                            update_rotations: true,
+                        },
+                    ))
+                })
+            },
+        );
+    }
+    g.finish();
+}
+
+criterion_group!(step, benches);
+criterion_main!(step);

@@ -27,7 +27,12 @@ pub struct Workspace {
 
 impl Workspace {
     pub fn new(model: &Model) -> Workspace {
-        let m = model.elements.iter().map(|e| e.shapes.len()).max().unwrap_or(0);
+        let m = model
+            .elements
+            .iter()
+            .map(|e| e.shapes.len())
+            .max()
+            .unwrap_or(0);
         Workspace {
             ke: vec![0.0; 9 * m * m],
             rotated: vec![Vector3::zeros(); m],
@@ -47,7 +52,13 @@ pub struct Request<'a> {
 }
 
 /// One pass over all groups at displacement `d`: returns the strain energy.
-pub fn evaluate(model: &Model, d: &[f64], rot: &mut Rotations, ws: &mut Workspace, mut req: Request<'_>) -> f64 {
+pub fn evaluate(
+    model: &Model,
+    d: &[f64],
+    rot: &mut Rotations,
+    ws: &mut Workspace,
+    mut req: Request<'_>,
+) -> f64 {
     if let Some(f) = req.forces.as_deref_mut() {
         f.fill(0.0);
     }
@@ -107,7 +118,13 @@ pub fn evaluate(model: &Model, d: &[f64], rot: &mut Rotations, ws: &mut Workspac
 }
 
 /// y += R K Rᵀ z for all DOFs (z over all DOFs), with the stored rotations.
-pub fn tangent_product(model: &Model, z: &[f64], rot: &Rotations, ws: &mut Workspace, y: &mut [f64]) {
+pub fn tangent_product(
+    model: &Model,
+    z: &[f64],
+    rot: &Rotations,
+    ws: &mut Workspace,
+    y: &mut [f64],
+) {
     let lame = model.lame;
     for el in &model.elements {
         let shapes = &model.shape_ids[el.shapes.clone()];

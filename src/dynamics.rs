@@ -114,7 +114,11 @@ pub struct Newmark<'m> {
 
 impl<'m> Newmark<'m> {
     /// Starts at rest (d = v = a = 0) at t = 0.
-    pub fn new(model: &'m Model, chol: Cholesky, opts: DynamicOptions) -> Result<Newmark<'m>, DynamicError> {
+    pub fn new(
+        model: &'m Model,
+        chol: Cholesky,
+        opts: DynamicOptions,
+    ) -> Result<Newmark<'m>, DynamicError> {
         if model.lumped_mass.is_none() {
             return Err(DynamicError::NoMass);
         }
@@ -163,7 +167,10 @@ impl<'m> Newmark<'m> {
             }
             MassKind::Consistent => {
                 // Free–free block only: prescribed DOFs move with zero acceleration after the ramp.
-                let values = m.consistent_mass.as_ref().expect("built with the lumped mass");
+                let values = m
+                    .consistent_mass
+                    .as_ref()
+                    .expect("built with the lumped mass");
                 let mut xf = vec![0.0; m.n_free];
                 gather_free(m, x, &mut xf);
                 let mut yf = vec![0.0; m.n_free];
@@ -178,13 +185,38 @@ impl<'m> Newmark<'m> {
         }
     }
 
-    /// Energies of the current state.
+    /// Energies of the current state (the strain energy is evaluated afresh).
     pub fn energies(&mut self) -> Energies {
+        let mut rot = self.state.rotations.clone();
+        self.strain_energy = evaluate(
+            self.model,
+            &self.state.d,
+            &mut rot,
+            &mut self.ws,
+            Request {
+                forces: None,
+                tangent: None,
+                update_rotations: self.model.formulation == Formulation::Corotational,
+            },
+        );
         let mut mv = std::mem::take(&mut self.mv);
         self.mass_product(&self.state.v, &mut mv);
-        let kinetic = 0.5 * self.state.v.iter().zip(&mv).map(|(a, b)| a * b).sum::<f64>();
+        let kinetic = 0.5
+            * self
+                .state
+                .v
+                .iter()
+                .zip(&mv)
+                .map(|(a, b)| a * b)
+                .sum::<f64>();
         self.mv = mv;
-        let external_work = self.model.load.iter().zip(&self.state.d).map(|(a, b)| a * b).sum();
+        let external_work = self
+            .model
+            .load
+            .iter()
+            .zip(&self.state.d)
+            .map(|(a, b)| a * b)
+            .sum();
         Energies {
             kinetic,
             strain: self.strain_energy,
@@ -237,8 +269,10 @@ impl<'m> Newmark<'m> {
                 },
             );
             for i in 0..d.len() {
-                self.a_new[i] = c0 * (d[i] - d_old[i]) - c1 * self.state.v[i] - c2 * self.state.a[i];
-                self.v_new[i] = self.state.v[i] + dt * ((1.0 - o.gamma) * self.state.a[i] + o.gamma * self.a_new[i]);
+                self.a_new[i] =
+                    c0 * (d[i] - d_old[i]) - c1 * self.state.v[i] - c2 * self.state.a[i];
+                self.v_new[i] = self.state.v[i]
+                    + dt * ((1.0 - o.gamma) * self.state.a[i] + o.gamma * self.a_new[i]);
             }
             // r = f_ext − f_int − M a − D v, D v = α M v + β K_t v.
             let mut ma = std::mem::take(&mut self.mv);
@@ -255,13 +289,21 @@ impl<'m> Newmark<'m> {
             self.mv = ma;
             if o.rayleigh_stiffness != 0.0 {
                 self.kv.fill(0.0);
-                tangent_product(model, &self.v_new, &self.state.rotations, &mut self.ws, &mut self.kv);
+                tangent_product(
+                    model,
+                    &self.v_new,
+                    &self.state.rotations,
+                    &mut self.ws,
+                    &mut self.kv,
+                );
                 for i in 0..d.len() {
                     self.r_full[i] -= o.rayleigh_stiffness * self.kv[i];
                 }
             }
             gather_free(model, &self.r_full, &mut self.r_free);
-            let scale = norm(&model.load).max(norm(&self.f_int)).max(f64::MIN_POSITIVE);
+            let scale = norm(&model.load)
+                .max(norm(&self.f_int))
+                .max(f64::MIN_POSITIVE);
             let residual = norm(&self.r_free) / scale;
             report.residual = residual;
             if !residual.is_finite() {
@@ -274,7 +316,10 @@ impl<'m> Newmark<'m> {
             if report.iterations >= o.max_iterations {
                 // One iteration is the linearly implicit scheme; more ask for convergence.
                 if o.max_iterations > 1 {
-                    return Err(DynamicError::NoConvergence { step: step_no, residual });
+                    return Err(DynamicError::NoConvergence {
+                        step: step_no,
+                        residual,
+                    });
                 }
                 break;
             }
@@ -294,6 +339,10 @@ impl<'m> Newmark<'m> {
                 }
             }
             report.iterations += 1;
+            // Linear: the solve is exact. One iteration: the linearly implicit scheme.
+            if linear || o.max_iterations == 1 {
+                break;
+            }
         }
         std::mem::swap(&mut self.state.v, &mut self.v_new);
         std::mem::swap(&mut self.state.a, &mut self.a_new);
@@ -315,14 +364,20 @@ impl<'m> Newmark<'m> {
                         let eq = model.equation[3 * s + c];
                         if eq != NONE {
                             let eq = eq as usize;
-                            let pos = model.pattern.position(eq, eq).expect("diagonal is in the pattern");
+                            let pos = model
+                                .pattern
+                                .position(eq, eq)
+                                .expect("diagonal is in the pattern");
                             self.keff[pos] += factor * ms;
                         }
                     }
                 }
             }
             MassKind::Consistent => {
-                let values = model.consistent_mass.as_ref().expect("built with the lumped mass");
+                let values = model
+                    .consistent_mass
+                    .as_ref()
+                    .expect("built with the lumped mass");
                 for (k, mv) in self.keff.iter_mut().zip(values) {
                     *k += factor * mv;
                 }

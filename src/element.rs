@@ -106,7 +106,9 @@ mod tests {
         let l = DEGREE5[9].bary;
         shape_gradients(kind, &l, &dl, &mut g);
         let x = Point3::from(
-            p.iter().zip(l).fold(Vector3::zeros(), |s, (pi, li)| s + pi.coords * li),
+            p.iter()
+                .zip(l)
+                .fold(Vector3::zeros(), |s, (pi, li)| s + pi.coords * li),
         );
         let h = 1e-6;
         for d in 0..3 {

@@ -19,6 +19,7 @@ pub mod locate;
 pub mod material;
 pub mod mesh;
 pub mod model;
+pub mod output;
 pub mod quadrature;
 pub mod reference;
 pub mod run;

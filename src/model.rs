@@ -301,7 +301,14 @@ impl Model {
                 if let Some(g) = gravity {
                     for q in load_rule {
                         let (bary, w) = map_point(&verts, &cell.vertices, q, cell_volume);
-                        eval_shapes(kind, &bary, &enr_local, |k| psi_of(cell, k), &mut nvals, &mut shape_val);
+                        eval_shapes(
+                            kind,
+                            &bary,
+                            &enr_local,
+                            |k| psi_of(cell, k),
+                            &mut nvals,
+                            &mut shape_val,
+                        );
                         for (a, &phi) in shape_val.iter().enumerate() {
                             let s = shape_ids[first + a] as usize;
                             for c in 0..3 {
@@ -324,7 +331,14 @@ impl Model {
                     }
                     for q in mass_rule {
                         let (bary, w) = map_point(&verts, &cell.vertices, q, cell_volume);
-                        eval_shapes(kind, &bary, &enr_local, |k| psi_of(cell, k), &mut nvals, &mut shape_val);
+                        eval_shapes(
+                            kind,
+                            &bary,
+                            &enr_local,
+                            |k| psi_of(cell, k),
+                            &mut nvals,
+                            &mut shape_val,
+                        );
                         for a in 0..m {
                             for b in 0..m {
                                 me[a * m + b] += rho * w * shape_val[a] * shape_val[b];
@@ -333,9 +347,20 @@ impl Model {
                     }
                 }
                 if let Some(lumped) = lumped.as_mut() {
-                    lump_element_mass(kind, &me, m, nn, &enr_local, &cells, &verts, node_side, volume, rho, |a| {
-                        shape_ids[first + a] as usize
-                    }, lumped);
+                    lump_element_mass(
+                        kind,
+                        &me,
+                        m,
+                        nn,
+                        &enr_local,
+                        &cells,
+                        &verts,
+                        node_side,
+                        volume,
+                        rho,
+                        |a| shape_ids[first + a] as usize,
+                        lumped,
+                    );
                 }
                 mass_entries.push((first..first + m, me));
             }
@@ -563,7 +588,11 @@ fn lump_element_mass(
     for (j, &k) in enr_local.iter().enumerate() {
         let mut factor = 0.0;
         for cell in cells {
-            let p = if cell.side == 0 { 0.0 } else { psi(cell.side, node_side[k]) };
+            let p = if cell.side == 0 {
+                0.0
+            } else {
+                psi(cell.side, node_side[k])
+            };
             factor += tet_volume(&cell.vertices) / volume * p * p;
         }
         lumped[global(nn + j)] += factor * muu[k];
@@ -624,7 +653,10 @@ pub struct GroupKernel<'a> {
 
 impl<'a> GroupKernel<'a> {
     /// Deformation gradient F = I + Σ_a d_a ⊗ ∇φ_a of the group.
-    pub fn deformation_gradient(grads: &[Vector3<f64>], disp: impl Fn(usize) -> Vector3<f64>) -> Matrix3<f64> {
+    pub fn deformation_gradient(
+        grads: &[Vector3<f64>],
+        disp: impl Fn(usize) -> Vector3<f64>,
+    ) -> Matrix3<f64> {
         let mut f = Matrix3::identity();
         for (a, g) in grads.iter().enumerate() {
             f += disp(a) * g.transpose();
@@ -645,7 +677,8 @@ impl<'a> GroupKernel<'a> {
 
     /// Strain energy of the group, w (μ ε:ε + λ/2 tr(ε)²).
     pub fn energy(&self, eps: &Matrix3<f64>) -> f64 {
-        self.weight * (self.lame.mu * eps.norm_squared() + 0.5 * self.lame.lambda * eps.trace().powi(2))
+        self.weight
+            * (self.lame.mu * eps.norm_squared() + 0.5 * self.lame.lambda * eps.trace().powi(2))
     }
 
     /// Internal forces f_a = w R σ ∇φ_a (adds to `out`, one per shape function).
@@ -685,7 +718,11 @@ impl<'a> GroupKernel<'a> {
 }
 
 /// Rotation of a group for the formulation (identity for linear).
-pub fn group_rotation(formulation: Formulation, f: &Matrix3<f64>, guess: &Matrix3<f64>) -> Matrix3<f64> {
+pub fn group_rotation(
+    formulation: Formulation,
+    f: &Matrix3<f64>,
+    guess: &Matrix3<f64>,
+) -> Matrix3<f64> {
     match formulation {
         Formulation::Linear => Matrix3::identity(),
         Formulation::Corotational => polar_rotation(f, guess),
@@ -720,13 +757,16 @@ impl Model {
             i
         }
         // Key (node, ψ in the region) → first region seen with it.
-        let mut first: std::collections::HashMap<(usize, i8), usize> = std::collections::HashMap::new();
+        let mut first: std::collections::HashMap<(usize, i8), usize> =
+            std::collections::HashMap::new();
         let mut held = vec![false; regions.len()];
         let is_fixed = |node: usize| self.prescribed_nodes_contains(node);
         for (r, &(e, side)) in regions.iter().enumerate() {
             for &node in mesh.element(e) {
                 let p = match &self.cut {
-                    Some(c) if side != 0 && c.enriched[node].is_some() => psi(side, c.node_side[node]) as i8,
+                    Some(c) if side != 0 && c.enriched[node].is_some() => {
+                        psi(side, c.node_side[node]) as i8
+                    }
                     _ => 0,
                 };
                 if p == 0 && is_fixed(node) {
@@ -743,13 +783,20 @@ impl Model {
                 }
             }
         }
-        let mut part_held: std::collections::HashMap<usize, (bool, usize, Vector3<f64>)> = std::collections::HashMap::new();
+        let mut part_held: std::collections::HashMap<usize, (bool, usize, Vector3<f64>)> =
+            std::collections::HashMap::new();
         for r in 0..regions.len() {
             let root = find(&mut parent, r);
-            let entry = part_held.entry(root).or_insert((false, 0, Vector3::zeros()));
+            let entry = part_held
+                .entry(root)
+                .or_insert((false, 0, Vector3::zeros()));
             entry.0 |= held[r];
             entry.1 += 1;
-            let c = mesh.vertex_points(regions[r].0).iter().fold(Vector3::zeros(), |s, p| s + p.coords) / 4.0;
+            let c = mesh
+                .vertex_points(regions[r].0)
+                .iter()
+                .fold(Vector3::zeros(), |s, p| s + p.coords)
+                / 4.0;
             entry.2 += c;
         }
         let mut free: Vec<String> = part_held
@@ -757,7 +804,10 @@ impl Model {
             .filter(|(h, _, _)| !h)
             .map(|(_, n, c)| {
                 let c = c / *n as f64;
-                format!("{n} element regions around ({:.4}, {:.4}, {:.4}) touch no [[fix]]", c.x, c.y, c.z)
+                format!(
+                    "{n} element regions around ({:.4}, {:.4}, {:.4}) touch no [[fix]]",
+                    c.x, c.y, c.z
+                )
             })
             .collect();
         free.sort();

@@ -86,7 +86,10 @@ mod tests {
                             let q: f64 = rule
                                 .iter()
                                 .map(|q| {
-                                    q.weight * (0..4).map(|i| q.bary[i].powi(p[i] as i32)).product::<f64>()
+                                    q.weight
+                                        * (0..4)
+                                            .map(|i| q.bary[i].powi(p[i] as i32))
+                                            .product::<f64>()
                                 })
                                 .sum();
                             assert!(

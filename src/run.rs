@@ -21,7 +21,13 @@ pub enum RunError {
     #[error("{file}: {source}")]
     Dynamic { file: String, source: DynamicError },
     #[error("{file}: probe {index} at ({x}, {y}, {z}) lies outside the body")]
-    ProbeOutside { file: String, index: usize, x: f64, y: f64, z: f64 },
+    ProbeOutside {
+        file: String,
+        index: usize,
+        x: f64,
+        y: f64,
+        z: f64,
+    },
     #[error("writing output: {0}")]
     Output(String),
 }
@@ -53,32 +59,71 @@ pub struct RunResult {
 }
 
 /// Solves `scene` at `level` (or on `mesh_override`).
-pub fn solve_scene(scene: &Scene, level: usize, mesh_override: Option<&Path>, keep_frames: bool) -> Result<RunResult, RunError> {
+pub fn solve_scene(
+    scene: &Scene,
+    level: usize,
+    mesh_override: Option<&Path>,
+    keep_frames: bool,
+) -> Result<RunResult, RunError> {
     let file = scene.file.display().to_string();
     let t0 = Instant::now();
     let mesh = match mesh_override {
         Some(p) => {
             let m = scene.read_mesh(p)?;
-            if scene.element == crate::mesh::ElementKind::Tet10 { m.to_tet10() } else { m }
+            if scene.element == crate::mesh::ElementKind::Tet10 {
+                m.to_tet10()
+            } else {
+                m
+            }
         }
         None => scene.mesh(level)?,
     };
     let t_mesh = t0.elapsed().as_secs_f64();
     let (model, plan) = scene.build(mesh)?;
     let t1 = Instant::now();
-    let chol = Cholesky::new(&model.pattern).map_err(|source| RunError::Solve { file: file.clone(), source })?;
+    let chol = Cholesky::new(&model.pattern).map_err(|source| RunError::Solve {
+        file: file.clone(),
+        source,
+    })?;
     let t_symbolic = t1.elapsed().as_secs_f64();
-    let mut timings = Timings { mesh: t_mesh, cut: plan.times[1], model: plan.times[0] + plan.times[2], symbolic: t_symbolic, solve: 0.0, steps: 0 };
+    let mut timings = Timings {
+        mesh: t_mesh,
+        cut: plan.times[1],
+        model: plan.times[0] + plan.times[2],
+        symbolic: t_symbolic,
+        solve: 0.0,
+        steps: 0,
+    };
     let t2 = Instant::now();
     match &scene.analysis {
         Analysis::Static(opts) => {
             let mut chol = chol;
-            let sol = solve_static(&model, &mut chol, opts).map_err(|source| RunError::Static { file: file.clone(), source })?;
+            let sol = solve_static(&model, &mut chol, opts).map_err(|source| RunError::Static {
+                file: file.clone(),
+                source,
+            })?;
             timings.solve = t2.elapsed().as_secs_f64();
-            Ok(RunResult { model, plan, d: sol.d, timings, iterations: sol.iterations, residual: sol.residual, factorisations: sol.factorisations, frames: Vec::new(), energies: Vec::new() })
+            Ok(RunResult {
+                model,
+                plan,
+                d: sol.d,
+                timings,
+                iterations: sol.iterations,
+                residual: sol.residual,
+                factorisations: sol.factorisations,
+                frames: Vec::new(),
+                energies: Vec::new(),
+            })
         }
-        Analysis::Dynamic { options, output_every } => {
-            let mut nm = Newmark::new(&model, chol, *options).map_err(|source| RunError::Dynamic { file: file.clone(), source })?;
+        Analysis::Dynamic {
+            options,
+            output_every,
+        } => {
+            let mut nm =
+                Newmark::new(&model, chol, *options).map_err(|source| RunError::Dynamic {
+                    file: file.clone(),
+                    source,
+                })?;
             let mut frames = Vec::new();
             let mut energies = Vec::new();
             let mut iterations = Vec::with_capacity(options.steps);
@@ -88,7 +133,10 @@ pub fn solve_scene(scene: &Scene, level: usize, mesh_override: Option<&Path>, ke
             }
             energies.push((0.0, nm.energies()));
             for step in 1..=options.steps {
-                let r = nm.step().map_err(|source| RunError::Dynamic { file: file.clone(), source })?;
+                let r = nm.step().map_err(|source| RunError::Dynamic {
+                    file: file.clone(),
+                    source,
+                })?;
                 iterations.push(r.iterations);
                 residual = residual.max(r.residual);
                 if step % output_every == 0 || step == options.steps {
@@ -103,20 +151,39 @@ pub fn solve_scene(scene: &Scene, level: usize, mesh_override: Option<&Path>, ke
             let d = nm.state.d.clone();
             let factorisations = nm.factorisations();
             drop(nm);
-            Ok(RunResult { model, plan, d, timings, iterations, residual, factorisations, frames, energies })
+            Ok(RunResult {
+                model,
+                plan,
+                d,
+                timings,
+                iterations,
+                residual,
+                factorisations,
+                frames,
+                energies,
+            })
         }
     }
 }
 
 /// Displacement at reference point `x`: located in the mesh; in a cut element
 /// the side is the sign of the level set there (on the cut: the + side).
-pub fn evaluate_at(model: &Model, locator: &Locator, d: &[f64], x: &Point3<f64>) -> Option<Vector3<f64>> {
+pub fn evaluate_at(
+    model: &Model,
+    locator: &Locator,
+    d: &[f64],
+    x: &Point3<f64>,
+) -> Option<Vector3<f64>> {
     let (e, bary) = locator.locate(&model.mesh, x)?;
     let side = match &model.cut {
         Some(c) => {
             let v = model.mesh.vertices(e);
             let phi: f64 = v.iter().zip(bary).map(|(&i, l)| c.phi[i] * l).sum();
-            if phi >= 0.0 { 1 } else { -1 }
+            if phi >= 0.0 {
+                1
+            } else {
+                -1
+            }
         }
         None => 0,
     };
@@ -131,7 +198,13 @@ pub fn probe_values(scene: &Scene, result: &RunResult) -> Result<Vec<Vector3<f64
         .iter()
         .enumerate()
         .map(|(index, p)| {
-            evaluate_at(&result.model, &locator, &result.d, p).ok_or(RunError::ProbeOutside { file: scene.file.display().to_string(), index, x: p.x, y: p.y, z: p.z })
+            evaluate_at(&result.model, &locator, &result.d, p).ok_or(RunError::ProbeOutside {
+                file: scene.file.display().to_string(),
+                index,
+                x: p.x,
+                y: p.y,
+                z: p.z,
+            })
         })
         .collect()
 }

@@ -4,10 +4,10 @@
 
 use crate::cut::{CutSetup, PlanarPatch};
 use crate::dynamics::{DynamicOptions, MassKind};
+use crate::material::Material;
 use crate::mesh::{box_mesh, ElementKind, TetMesh};
 use crate::model::{Formulation, Model, ModelError, ModelInput, Traction};
 use crate::statics::StaticOptions;
-use crate::material::Material;
 use nalgebra::{Point3, Vector3};
 use std::collections::BTreeSet;
 use std::fmt;
@@ -20,13 +20,29 @@ pub enum SceneError {
     #[error("{file}: cannot read: {message}")]
     Read { file: String, message: String },
     #[error("{file}: TOML syntax error at line {line}: {message}")]
-    Syntax { file: String, line: usize, message: String },
+    Syntax {
+        file: String,
+        line: usize,
+        message: String,
+    },
     #[error("{file}: key `{key}`: {message}")]
-    Key { file: String, key: String, message: String },
+    Key {
+        file: String,
+        key: String,
+        message: String,
+    },
     #[error("{file}: mesh `{mesh}`: {message}")]
-    Mesh { file: String, mesh: String, message: String },
+    Mesh {
+        file: String,
+        mesh: String,
+        message: String,
+    },
     #[error("{file}: level {level} does not exist (the case has {count} levels: 0..{})", count.saturating_sub(1))]
-    Level { file: String, level: usize, count: usize },
+    Level {
+        file: String,
+        level: usize,
+        count: usize,
+    },
     #[error("{file}: {message}")]
     Model { file: String, message: String },
 }
@@ -34,7 +50,11 @@ pub enum SceneError {
 /// Where the body's mesh comes from.
 #[derive(Debug, Clone)]
 pub enum BodyGeometry {
-    Box { min: Point3<f64>, max: Point3<f64>, levels: Vec<[usize; 3]> },
+    Box {
+        min: Point3<f64>,
+        max: Point3<f64>,
+        levels: Vec<[usize; 3]>,
+    },
     Meshes(Vec<PathBuf>),
 }
 
@@ -66,7 +86,10 @@ pub struct CutSpec {
 #[derive(Debug, Clone)]
 pub enum Analysis {
     Static(StaticOptions),
-    Dynamic { options: DynamicOptions, output_every: usize },
+    Dynamic {
+        options: DynamicOptions,
+        output_every: usize,
+    },
 }
 
 /// A parsed, validated case file.
@@ -97,15 +120,28 @@ struct Reader<'a> {
 
 impl<'a> Reader<'a> {
     fn new(file: &'a str, path: &str, table: &'a Table) -> Self {
-        Reader { file, path: path.to_string(), table, used: BTreeSet::new() }
+        Reader {
+            file,
+            path: path.to_string(),
+            table,
+            used: BTreeSet::new(),
+        }
     }
 
     fn key(&self, k: &str) -> String {
-        if self.path.is_empty() { k.to_string() } else { format!("{}.{}", self.path, k) }
+        if self.path.is_empty() {
+            k.to_string()
+        } else {
+            format!("{}.{}", self.path, k)
+        }
     }
 
     fn err(&self, k: &str, message: impl Into<String>) -> SceneError {
-        SceneError::Key { file: self.file.to_string(), key: self.key(k), message: message.into() }
+        SceneError::Key {
+            file: self.file.to_string(),
+            key: self.key(k),
+            message: message.into(),
+        }
     }
 
     fn get(&mut self, k: &str) -> Option<&'a Value> {
@@ -114,7 +150,8 @@ impl<'a> Reader<'a> {
     }
 
     fn req(&mut self, k: &str) -> Result<&'a Value, SceneError> {
-        self.get(k).ok_or_else(|| self.err(k, "missing required key"))
+        self.get(k)
+            .ok_or_else(|| self.err(k, "missing required key"))
     }
 
     fn num(&self, k: &str, v: &Value, allow_inf: bool) -> Result<f64, SceneError> {
@@ -150,7 +187,10 @@ impl<'a> Reader<'a> {
     }
 
     fn vec3_of(&self, k: &str, v: &Value, allow_inf: bool) -> Result<[f64; 3], SceneError> {
-        let arr = v.as_array().filter(|a| a.len() == 3).ok_or_else(|| self.err(k, format!("expected 3 numbers, got {v}")))?;
+        let arr = v
+            .as_array()
+            .filter(|a| a.len() == 3)
+            .ok_or_else(|| self.err(k, format!("expected 3 numbers, got {v}")))?;
         let mut out = [0.0; 3];
         for (o, x) in out.iter_mut().zip(arr) {
             *o = self.num(k, x, allow_inf)?;
@@ -191,9 +231,15 @@ impl<'a> Reader<'a> {
         match self.get(k) {
             Some(Value::Array(a)) => a
                 .iter()
-                .map(|v| v.as_table().ok_or_else(|| self.err(k, "expected an array of tables ([[...]])")))
+                .map(|v| {
+                    v.as_table()
+                        .ok_or_else(|| self.err(k, "expected an array of tables ([[...]])"))
+                })
                 .collect(),
-            Some(other) => Err(self.err(k, format!("expected an array of tables ([[{k}]]), got {other}"))),
+            Some(other) => Err(self.err(
+                k,
+                format!("expected an array of tables ([[{k}]]), got {other}"),
+            )),
             None => Ok(Vec::new()),
         }
     }
@@ -216,7 +262,10 @@ impl Scene {
     /// Reads and validates a case file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| SceneError::Read { file: file.clone(), message: e.to_string() })?;
+        let text = std::fs::read_to_string(path).map_err(|e| SceneError::Read {
+            file: file.clone(),
+            message: e.to_string(),
+        })?;
         Scene::parse(&text, path)
     }
 
@@ -225,59 +274,106 @@ impl Scene {
         let file = path.display().to_string();
         let f = file.as_str();
         let root: Table = text.parse().map_err(|e: toml::de::Error| {
-            let line = e.span().map_or(0, |s| text[..s.start.min(text.len())].lines().count().max(1));
-            SceneError::Syntax { file: file.clone(), line, message: e.message().replace('\n', " ") }
+            let line = e.span().map_or(0, |s| {
+                text[..s.start.min(text.len())].lines().count().max(1)
+            });
+            SceneError::Syntax {
+                file: file.clone(),
+                line,
+                message: e.message().replace('\n', " "),
+            }
         })?;
         let mut r = Reader::new(f, "", &root);
-        let name = r.string("name")?.ok_or_else(|| r.err("name", "missing required key"))?.to_string();
+        let name = r
+            .string("name")?
+            .ok_or_else(|| r.err("name", "missing required key"))?
+            .to_string();
         let description = r.string("description")?.unwrap_or("").to_string();
 
         // [body]
-        let body_t = r.table("body")?.ok_or_else(|| r.err("body", "missing required table [body]"))?;
+        let body_t = r
+            .table("body")?
+            .ok_or_else(|| r.err("body", "missing required table [body]"))?;
         let mut b = sub(f, &r, "body", body_t);
         let element = match b.string("element")?.unwrap_or("tet4") {
             "tet4" => ElementKind::Tet4,
             "tet10" => ElementKind::Tet10,
-            other => return Err(b.err("element", format!("must be \"tet4\" or \"tet10\", got \"{other}\""))),
+            other => {
+                return Err(b.err(
+                    "element",
+                    format!("must be \"tet4\" or \"tet10\", got \"{other}\""),
+                ))
+            }
         };
         let geometry = match (b.table.contains_key("box"), b.table.contains_key("mesh")) {
             (true, true) => return Err(b.err("mesh", "give either `box` or `mesh`, not both")),
-            (false, false) => return Err(b.err("box", "missing: give `box` (with `levels`) or `mesh`")),
+            (false, false) => {
+                return Err(b.err("box", "missing: give `box` (with `levels`) or `mesh`"))
+            }
             (true, false) => {
                 let bx = b.req("box")?;
-                let corners = bx.as_array().filter(|a| a.len() == 2).ok_or_else(|| b.err("box", format!("expected [[x,y,z],[x,y,z]], got {bx}")))?;
+                let corners = bx
+                    .as_array()
+                    .filter(|a| a.len() == 2)
+                    .ok_or_else(|| b.err("box", format!("expected [[x,y,z],[x,y,z]], got {bx}")))?;
                 let min = b.vec3_of("box", &corners[0], false)?;
                 let max = b.vec3_of("box", &corners[1], false)?;
                 if (0..3).any(|k| max[k] <= min[k]) {
-                    return Err(b.err("box", format!("max must exceed min on every axis, got {min:?} {max:?}")));
+                    return Err(b.err(
+                        "box",
+                        format!("max must exceed min on every axis, got {min:?} {max:?}"),
+                    ));
                 }
                 let lv = b.req("levels")?;
-                let arr = lv.as_array().filter(|a| !a.is_empty()).ok_or_else(|| b.err("levels", format!("expected a non-empty list of [nx, ny, nz], got {lv}")))?;
+                let arr = lv.as_array().filter(|a| !a.is_empty()).ok_or_else(|| {
+                    b.err(
+                        "levels",
+                        format!("expected a non-empty list of [nx, ny, nz], got {lv}"),
+                    )
+                })?;
                 let mut levels = Vec::new();
                 for l in arr {
-                    let d = l.as_array().filter(|a| a.len() == 3).ok_or_else(|| b.err("levels", format!("expected [nx, ny, nz], got {l}")))?;
+                    let d = l.as_array().filter(|a| a.len() == 3).ok_or_else(|| {
+                        b.err("levels", format!("expected [nx, ny, nz], got {l}"))
+                    })?;
                     let mut div = [0usize; 3];
                     for (o, x) in div.iter_mut().zip(d) {
                         *o = match x {
                             Value::Integer(i) if *i > 0 && *i <= 1000 => *i as usize,
-                            other => return Err(b.err("levels", format!("divisions must be integers in 1..=1000, got {other}"))),
+                            other => {
+                                return Err(b.err(
+                                    "levels",
+                                    format!("divisions must be integers in 1..=1000, got {other}"),
+                                ))
+                            }
                         };
                     }
                     levels.push(div);
                 }
-                BodyGeometry::Box { min: Point3::from(min), max: Point3::from(max), levels }
+                BodyGeometry::Box {
+                    min: Point3::from(min),
+                    max: Point3::from(max),
+                    levels,
+                }
             }
             (false, true) => {
                 let mv = b.req("mesh")?;
                 let list: Vec<&Value> = match mv {
                     Value::String(_) => vec![mv],
                     Value::Array(a) if !a.is_empty() => a.iter().collect(),
-                    other => return Err(b.err("mesh", format!("expected a file name or a list of them, got {other}"))),
+                    other => {
+                        return Err(b.err(
+                            "mesh",
+                            format!("expected a file name or a list of them, got {other}"),
+                        ))
+                    }
                 };
                 let base = path.parent().unwrap_or(Path::new("."));
                 let mut files = Vec::new();
                 for m in list {
-                    let s = m.as_str().ok_or_else(|| b.err("mesh", format!("expected a file name, got {m}")))?;
+                    let s = m
+                        .as_str()
+                        .ok_or_else(|| b.err("mesh", format!("expected a file name, got {m}")))?;
                     files.push(base.join(s));
                 }
                 BodyGeometry::Meshes(files)
@@ -286,7 +382,9 @@ impl Scene {
         b.finish()?;
 
         // [material]
-        let mat_t = r.table("material")?.ok_or_else(|| r.err("material", "missing required table [material]"))?;
+        let mat_t = r
+            .table("material")?
+            .ok_or_else(|| r.err("material", "missing required table [material]"))?;
         let mut m = sub(f, &r, "material", mat_t);
         let young = m.positive("young")?;
         let poisson = m.f64("poisson")?;
@@ -295,7 +393,11 @@ impl Scene {
         }
         let density = m.positive("density")?;
         m.finish()?;
-        let material = Material { young, poisson, density };
+        let material = Material {
+            young,
+            poisson,
+            density,
+        };
 
         // [[cut]]
         let mut cuts = Vec::new();
@@ -304,8 +406,18 @@ impl Scene {
             let origin = Point3::from(c.vec3("origin", false)?);
             let u = Vector3::from(c.vec3("u", false)?);
             let v = Vector3::from(c.vec3("v", false)?);
-            if u.cross(&v).norm() <= 1e-14 * u.norm() * v.norm() || u.norm() == 0.0 || v.norm() == 0.0 {
-                return Err(c.err("v", format!("u and v span no area (u = {:?}, v = {:?})", u.as_slice(), v.as_slice())));
+            if u.cross(&v).norm() <= 1e-14 * u.norm() * v.norm()
+                || u.norm() == 0.0
+                || v.norm() == 0.0
+            {
+                return Err(c.err(
+                    "v",
+                    format!(
+                        "u and v span no area (u = {:?}, v = {:?})",
+                        u.as_slice(),
+                        v.as_slice()
+                    ),
+                ));
             }
             let snap = c.opt_f64("snap")?;
             if let Some(s) = snap {
@@ -336,7 +448,12 @@ impl Scene {
                             'x' => comp[0] = true,
                             'y' => comp[1] = true,
                             'z' => comp[2] = true,
-                            _ => return Err(c.err("components", format!("must be letters of \"xyz\", got \"{s}\""))),
+                            _ => {
+                                return Err(c.err(
+                                    "components",
+                                    format!("must be letters of \"xyz\", got \"{s}\""),
+                                ))
+                            }
                         }
                     }
                     if !comp.iter().any(|&b| b) {
@@ -346,7 +463,12 @@ impl Scene {
                 }
             };
             c.finish()?;
-            fixes.push(Fix { min, max, displacement, components });
+            fixes.push(Fix {
+                min,
+                max,
+                displacement,
+                components,
+            });
         }
         if fixes.is_empty() {
             return Err(r.err("fix", "missing: at least one [[fix]] is needed"));
@@ -375,14 +497,23 @@ impl Scene {
         };
 
         // [analysis]
-        let an_t = r.table("analysis")?.ok_or_else(|| r.err("analysis", "missing required table [analysis]"))?;
+        let an_t = r
+            .table("analysis")?
+            .ok_or_else(|| r.err("analysis", "missing required table [analysis]"))?;
         let mut a = sub(f, &r, "analysis", an_t);
         let formulation = match a.string("formulation")?.unwrap_or("linear") {
             "linear" => Formulation::Linear,
             "corotational" => Formulation::Corotational,
-            other => return Err(a.err("formulation", format!("must be \"linear\" or \"corotational\", got \"{other}\""))),
+            other => {
+                return Err(a.err(
+                    "formulation",
+                    format!("must be \"linear\" or \"corotational\", got \"{other}\""),
+                ))
+            }
         };
-        let kind = a.string("type")?.ok_or_else(|| a.err("type", "missing required key (\"static\" or \"dynamic\")"))?;
+        let kind = a
+            .string("type")?
+            .ok_or_else(|| a.err("type", "missing required key (\"static\" or \"dynamic\")"))?;
         let tolerance = a.opt_f64("tolerance")?;
         let max_iterations = a.usize("max_iterations")?;
         let analysis = match kind {
@@ -397,7 +528,15 @@ impl Scene {
                 if let Some(m) = max_iterations {
                     o.max_iterations = m;
                 }
-                for k in ["dt", "steps", "newmark", "rayleigh", "ramp", "mass", "output_every"] {
+                for k in [
+                    "dt",
+                    "steps",
+                    "newmark",
+                    "rayleigh",
+                    "ramp",
+                    "mass",
+                    "output_every",
+                ] {
                     if a.table.contains_key(k) {
                         return Err(a.err(k, "only for type = \"dynamic\""));
                     }
@@ -405,8 +544,13 @@ impl Scene {
                 Analysis::Static(o)
             }
             "dynamic" => {
-                let mut o = DynamicOptions { dt: a.positive("dt")?, ..DynamicOptions::default() };
-                o.steps = a.usize("steps")?.ok_or_else(|| a.err("steps", "missing required key for a dynamic analysis"))?;
+                let mut o = DynamicOptions {
+                    dt: a.positive("dt")?,
+                    ..DynamicOptions::default()
+                };
+                o.steps = a
+                    .usize("steps")?
+                    .ok_or_else(|| a.err("steps", "missing required key for a dynamic analysis"))?;
                 if let Some(t) = a.table("newmark")? {
                     let mut n = sub(f, &a, "newmark", t);
                     o.beta = n.positive("beta")?;
@@ -432,7 +576,12 @@ impl Scene {
                 o.mass = match a.string("mass")?.unwrap_or("lumped") {
                     "lumped" => MassKind::Lumped,
                     "consistent" => MassKind::Consistent,
-                    other => return Err(a.err("mass", format!("must be \"lumped\" or \"consistent\", got \"{other}\""))),
+                    other => {
+                        return Err(a.err(
+                            "mass",
+                            format!("must be \"lumped\" or \"consistent\", got \"{other}\""),
+                        ))
+                    }
                 };
                 if let Some(t) = tolerance {
                     o.tolerance = t;
@@ -440,13 +589,23 @@ impl Scene {
                 if let Some(m) = max_iterations {
                     o.max_iterations = m;
                 }
-                let output_every = a.usize("output_every")?.unwrap_or_else(|| o.steps.div_ceil(100).max(1));
+                let output_every = a
+                    .usize("output_every")?
+                    .unwrap_or_else(|| o.steps.div_ceil(100).max(1));
                 if a.table.contains_key("load_steps") {
                     return Err(a.err("load_steps", "only for type = \"static\""));
                 }
-                Analysis::Dynamic { options: o, output_every }
+                Analysis::Dynamic {
+                    options: o,
+                    output_every,
+                }
             }
-            other => return Err(a.err("type", format!("must be \"static\" or \"dynamic\", got \"{other}\""))),
+            other => {
+                return Err(a.err(
+                    "type",
+                    format!("must be \"static\" or \"dynamic\", got \"{other}\""),
+                ))
+            }
         };
         a.finish()?;
 
@@ -455,7 +614,9 @@ impl Scene {
         for (i, t) in r.tables("probe")?.into_iter().enumerate() {
             let mut c = sub(f, &r, &format!("probe[{i}]"), t);
             let pts = c.req("points")?;
-            let arr = pts.as_array().ok_or_else(|| c.err("points", format!("expected a list of [x, y, z], got {pts}")))?;
+            let arr = pts.as_array().ok_or_else(|| {
+                c.err("points", format!("expected a list of [x, y, z], got {pts}"))
+            })?;
             for p in arr {
                 probes.push(Point3::from(c.vec3_of("points", p, false)?));
             }
@@ -499,7 +660,11 @@ impl Scene {
     pub fn mesh(&self, level: usize) -> Result<TetMesh, SceneError> {
         let count = self.n_levels();
         if level >= count {
-            return Err(SceneError::Level { file: self.file(), level, count });
+            return Err(SceneError::Level {
+                file: self.file(),
+                level,
+                count,
+            });
         }
         let mesh = match &self.geometry {
             BodyGeometry::Box { min, max, levels } => box_mesh(*min, *max, levels[level]),
@@ -507,7 +672,11 @@ impl Scene {
         };
         Ok(match self.element {
             ElementKind::Tet4 if mesh.kind == ElementKind::Tet10 => {
-                return Err(SceneError::Mesh { file: self.file(), mesh: format!("level {level}"), message: "is a Tet10 mesh but element = \"tet4\"".into() })
+                return Err(SceneError::Mesh {
+                    file: self.file(),
+                    mesh: format!("level {level}"),
+                    message: "is a Tet10 mesh but element = \"tet4\"".into(),
+                })
             }
             ElementKind::Tet4 => mesh,
             ElementKind::Tet10 => mesh.to_tet10(),
@@ -518,7 +687,11 @@ impl Scene {
     pub fn read_mesh(&self, path: &Path) -> Result<TetMesh, SceneError> {
         crate::io::read_msh(path)
             .map(|m| m.mesh)
-            .map_err(|e| SceneError::Mesh { file: self.file(), mesh: path.display().to_string(), message: e.to_string() })
+            .map_err(|e| SceneError::Mesh {
+                file: self.file(),
+                mesh: path.display().to_string(),
+                message: e.to_string(),
+            })
     }
 
     /// Builds the model of `mesh` and the plan saying what runs.
@@ -527,7 +700,9 @@ impl Scene {
         let file = self.file();
         let (lo, hi) = mesh.bounding_box();
         let tol = 1e-9 * (hi - lo).norm();
-        let inside = |p: &Point3<f64>, min: &[f64; 3], max: &[f64; 3]| (0..3).all(|k| p[k] >= min[k] - tol && p[k] <= max[k] + tol);
+        let inside = |p: &Point3<f64>, min: &[f64; 3], max: &[f64; 3]| {
+            (0..3).all(|k| p[k] >= min[k] - tol && p[k] <= max[k] + tol)
+        };
 
         // Dirichlet nodes.
         let mut fixed_nodes: Vec<[Option<f64>; 3]> = vec![[None; 3]; mesh.n_nodes()];
@@ -544,20 +719,43 @@ impl Scene {
                 }
             }
             if count == 0 {
-                return Err(SceneError::Key { file, key: format!("fix[{i}]"), message: format!("selects no node (box min {:?}, max {:?})", fx.min, fx.max) });
+                return Err(SceneError::Key {
+                    file,
+                    key: format!("fix[{i}]"),
+                    message: format!("selects no node (box min {:?}, max {:?})", fx.min, fx.max),
+                });
             }
         }
-        let fixed: Vec<(usize, [Option<f64>; 3])> = fixed_nodes.into_iter().enumerate().filter(|(_, c)| c.iter().any(Option::is_some)).collect();
+        let fixed: Vec<(usize, [Option<f64>; 3])> = fixed_nodes
+            .into_iter()
+            .enumerate()
+            .filter(|(_, c)| c.iter().any(Option::is_some))
+            .collect();
 
         // Tractions.
-        let boundary = if self.tractions.is_empty() { Vec::new() } else { mesh.boundary_faces() };
+        let boundary = if self.tractions.is_empty() {
+            Vec::new()
+        } else {
+            mesh.boundary_faces()
+        };
         let mut tractions = Vec::new();
         for (i, t) in self.tractions.iter().enumerate() {
-            let faces: Vec<_> = boundary.iter().filter(|(tri, _)| tri.iter().all(|&v| inside(&mesh.nodes[v], &t.min, &t.max))).copied().collect();
+            let faces: Vec<_> = boundary
+                .iter()
+                .filter(|(tri, _)| tri.iter().all(|&v| inside(&mesh.nodes[v], &t.min, &t.max)))
+                .copied()
+                .collect();
             if faces.is_empty() {
-                return Err(SceneError::Key { file, key: format!("traction[{i}]"), message: "selects no boundary face".into() });
+                return Err(SceneError::Key {
+                    file,
+                    key: format!("traction[{i}]"),
+                    message: "selects no boundary face".into(),
+                });
             }
-            tractions.push(Traction { faces, value: Vector3::from(t.traction) });
+            tractions.push(Traction {
+                faces,
+                value: Vector3::from(t.traction),
+            });
         }
         let t_setup = t0.elapsed().as_secs_f64();
 
@@ -566,10 +764,30 @@ impl Scene {
         let cut: Option<CutSetup> = if self.cuts.is_empty() {
             None
         } else {
-            let patches: Vec<PlanarPatch> = self.cuts.iter().map(|c| PlanarPatch { origin: c.origin, u: c.u, v: c.v }).collect();
-            let surfaces: Vec<&dyn crate::cut::CutSurface> = patches.iter().map(|p| p as &dyn crate::cut::CutSurface).collect();
-            let snap = self.cuts.iter().filter_map(|c| c.snap).fold(crate::cut::DEFAULT_SNAP, |_, s| s);
-            Some(crate::cut::setup_cut(&mesh, &surfaces, snap).map_err(|e| SceneError::Model { file: file.clone(), message: e.to_string() })?)
+            let patches: Vec<PlanarPatch> = self
+                .cuts
+                .iter()
+                .map(|c| PlanarPatch {
+                    origin: c.origin,
+                    u: c.u,
+                    v: c.v,
+                })
+                .collect();
+            let surfaces: Vec<&dyn crate::cut::CutSurface> = patches
+                .iter()
+                .map(|p| p as &dyn crate::cut::CutSurface)
+                .collect();
+            let snap = self
+                .cuts
+                .iter()
+                .filter_map(|c| c.snap)
+                .fold(crate::cut::DEFAULT_SNAP, |_, s| s);
+            Some(
+                crate::cut::setup_cut(&mesh, &surfaces, snap).map_err(|e| SceneError::Model {
+                    file: file.clone(),
+                    message: e.to_string(),
+                })?,
+            )
         };
         let t_cut = t1.elapsed().as_secs_f64();
 
@@ -586,11 +804,17 @@ impl Scene {
             tractions: &tractions,
             need_mass,
         })
-        .map_err(|e: ModelError| SceneError::Model { file: file.clone(), message: e.to_string() })?;
+        .map_err(|e: ModelError| SceneError::Model {
+            file: file.clone(),
+            message: e.to_string(),
+        })?;
         let t_model = t2.elapsed().as_secs_f64();
         if let Some(part) = model.free_parts().first() {
             if !self.is_dynamic() {
-                return Err(SceneError::Model { file, message: format!("a static scene has a part that floats free: {part}") });
+                return Err(SceneError::Model {
+                    file,
+                    message: format!("a static scene has a part that floats free: {part}"),
+                });
             }
         }
         let plan = Plan::new(self, &model, n_elements, [t_setup, t_cut, t_model]);
@@ -617,17 +841,77 @@ impl Plan {
         let corot = scene.formulation == Formulation::Corotational;
         let cut = !scene.cuts.is_empty();
         let mut s: Vec<(String, bool, String)> = Vec::new();
-        let mut add = |name: &str, run: bool, why: &str| s.push((name.to_string(), run, why.to_string()));
-        add("mesh", true, &format!("{} {}", model.mesh.kind.name(), match scene.geometry { BodyGeometry::Box { .. } => "structured box", BodyGeometry::Meshes(_) => "gmsh file" }));
-        add("cut set-up (level set, classification, sub-tets, enrichment)", cut, if cut { "the scene has [[cut]]" } else { "no cut in the scene" });
+        let mut add =
+            |name: &str, run: bool, why: &str| s.push((name.to_string(), run, why.to_string()));
+        add(
+            "mesh",
+            true,
+            &format!(
+                "{} {}",
+                model.mesh.kind.name(),
+                match scene.geometry {
+                    BodyGeometry::Box { .. } => "structured box",
+                    BodyGeometry::Meshes(_) => "gmsh file",
+                }
+            ),
+        );
+        add(
+            "cut set-up (level set, classification, sub-tets, enrichment)",
+            cut,
+            if cut {
+                "the scene has [[cut]]"
+            } else {
+                "no cut in the scene"
+            },
+        );
         add("element data (gradients, integration groups)", true, "once");
         add("sparsity pattern + symbolic factorisation", true, "once");
-        add("mass (lumped, eq. 81-82)", dynamic, if dynamic { "dynamic scene" } else { "static scene: no mass" });
-        add("rotations (polar decomposition per group)", corot, if corot { "corotational" } else { "linear scene: R = I" });
+        add(
+            "mass (lumped, eq. 81-82)",
+            dynamic,
+            if dynamic {
+                "dynamic scene"
+            } else {
+                "static scene: no mass"
+            },
+        );
+        add(
+            "rotations (polar decomposition per group)",
+            corot,
+            if corot {
+                "corotational"
+            } else {
+                "linear scene: R = I"
+            },
+        );
         let refactor = corot;
-        add("numeric factorisation every iteration", refactor, if refactor { "tangent R K R^T changes" } else { "constant matrix: factorised once" });
-        add("Newton load steps", corot && !dynamic, if corot && !dynamic { "corotational static" } else { "not needed" });
-        add("Newmark time stepping", dynamic, if dynamic { "dynamic scene" } else { "static scene" });
+        add(
+            "numeric factorisation every iteration",
+            refactor,
+            if refactor {
+                "tangent R K R^T changes"
+            } else {
+                "constant matrix: factorised once"
+            },
+        );
+        add(
+            "Newton load steps",
+            corot && !dynamic,
+            if corot && !dynamic {
+                "corotational static"
+            } else {
+                "not needed"
+            },
+        );
+        add(
+            "Newmark time stepping",
+            dynamic,
+            if dynamic {
+                "dynamic scene"
+            } else {
+                "static scene"
+            },
+        );
         Plan {
             stages: s,
             elements,
@@ -644,7 +928,11 @@ impl fmt::Display for Plan {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(f, "plan:")?;
         for (name, run, why) in &self.stages {
-            writeln!(f, "  [{}] {name} ({why})", if *run { "run " } else { "skip" })?;
+            writeln!(
+                f,
+                "  [{}] {name} ({why})",
+                if *run { "run " } else { "skip" }
+            )?;
         }
         write!(
             f,

@@ -194,7 +194,11 @@ mod tests {
             let mut b = vec![0.0; n];
             p.sym_mul_add(&v, &x_true, &mut b);
             chol.solve_in_place(&mut b);
-            let err: f64 = b.iter().zip(&x_true).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+            let err: f64 = b
+                .iter()
+                .zip(&x_true)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
             assert!(err < 1e-10, "error {err}");
         }
         assert_eq!(chol.factorisations, 2);
@@ -205,6 +209,9 @@ mod tests {
         let (p, mut v) = laplacian(5);
         v[p.position(2, 2).unwrap()] = -4.0;
         let mut chol = Cholesky::new(&p).unwrap();
-        assert!(matches!(chol.factorize(&v), Err(SolveError::NotPositiveDefinite)));
+        assert!(matches!(
+            chol.factorize(&v),
+            Err(SolveError::NotPositiveDefinite)
+        ));
     }
 }

@@ -56,7 +56,11 @@ pub struct StaticSolution {
 }
 
 /// Solves the static problem; `chol` holds the symbolic factorisation of the model's pattern.
-pub fn solve_static(model: &Model, chol: &mut Cholesky, opts: &StaticOptions) -> Result<StaticSolution, StaticError> {
+pub fn solve_static(
+    model: &Model,
+    chol: &mut Cholesky,
+    opts: &StaticOptions,
+) -> Result<StaticSolution, StaticError> {
     let n = model.n_dofs();
     let linear = model.formulation == Formulation::Linear;
     let steps = if linear { 1 } else { opts.load_steps.max(1) };
@@ -90,7 +94,12 @@ pub fn solve_static(model: &Model, chol: &mut Cholesky, opts: &StaticOptions) ->
                     update_rotations: !linear,
                 },
             );
-            let mut r_full: Vec<f64> = model.load.iter().zip(&f_int).map(|(l, f)| lambda * l - f).collect();
+            let mut r_full: Vec<f64> = model
+                .load
+                .iter()
+                .zip(&f_int)
+                .map(|(l, f)| lambda * l - f)
+                .collect();
             gather_free(model, &r_full, &mut r_free);
             let scale = norm(&model.load).max(norm(&f_int)).max(f64::MIN_POSITIVE);
             residual = norm(&r_free) / scale;
