@@ -344,6 +344,12 @@ impl<'m> Newmark<'m> {
                 break;
             }
         }
+        // Kinematics of the final iterate (the loop may stop right after an update).
+        for i in 0..d.len() {
+            self.a_new[i] = c0 * (d[i] - d_old[i]) - c1 * self.state.v[i] - c2 * self.state.a[i];
+            self.v_new[i] = self.state.v[i]
+                + dt * ((1.0 - o.gamma) * self.state.a[i] + o.gamma * self.a_new[i]);
+        }
         std::mem::swap(&mut self.state.v, &mut self.v_new);
         std::mem::swap(&mut self.state.a, &mut self.a_new);
         self.state.d = d;

@@ -224,3 +224,206 @@ fn rigid_rotation_gives_zero_corotational_force_and_linear_ghost_forces() {
         }
     }
 }
+
+fn clamped_model(
+    mesh: TetMesh,
+    formulation: Formulation,
+    gravity: Option<Vector3<f64>>,
+    need_mass: bool,
+) -> Model {
+    let fixed = mesh
+        .nodes
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.z.abs() < 1e-12)
+        .map(|(i, _)| (i, [Some(0.0); 3]))
+        .collect();
+    Model::build(ModelInput {
+        mesh,
+        material: MAT,
+        formulation,
+        cut: None,
+        fixed,
+        gravity,
+        tractions: &[],
+        need_mass,
+    })
+    .unwrap()
+}
+
+/// Mean x displacement of the nodes on the face z = zmax.
+fn tip_deflection(model: &Model, d: &[f64], zmax: f64) -> f64 {
+    let tip: Vec<usize> = (0..model.mesh.n_nodes())
+        .filter(|&i| (model.mesh.nodes[i].z - zmax).abs() < 1e-12)
+        .collect();
+    tip.iter().map(|&i| d[3 * i]).sum::<f64>() / tip.len() as f64
+}
+
+#[test]
+fn cantilever_tip_deflection_matches_timoshenko_for_tet10() {
+    // Slender beam 1 cm × 1 cm × 20 cm (L/h = 20), clamped at z = 0, gravity along x.
+    let (b, h, l): (f64, f64, f64) = (0.01, 0.01, 0.2);
+    let g = 9.81;
+    let lame = xfem_cut::material::Lame::from(MAT);
+    let q = MAT.density * g * b * h;
+    let inertia = b * h.powi(3) / 12.0;
+    let shear = 5.0 / 6.0 * lame.mu * b * h;
+    let theory = q * l.powi(4) / (8.0 * MAT.young * inertia) + q * l * l / (2.0 * shear);
+    let mut results = Vec::new();
+    for tet10 in [true, false] {
+        let mesh = box_mesh(Point3::origin(), Point3::new(b, h, l), [3, 3, 60]);
+        let mesh = if tet10 { mesh.to_tet10() } else { mesh };
+        let model = clamped_model(
+            mesh,
+            Formulation::Linear,
+            Some(Vector3::new(g, 0.0, 0.0)),
+            false,
+        );
+        let mut chol = Cholesky::new(&model.pattern).unwrap();
+        let sol = solve_static(&model, &mut chol, &StaticOptions::default()).unwrap();
+        results.push(tip_deflection(&model, &sol.d, l) / theory);
+    }
+    println!(
+        "tip deflection / Timoshenko: Tet10 {:.4}, Tet4 {:.4}",
+        results[0], results[1]
+    );
+    assert!(
+        (results[0] - 1.0).abs() < 0.02,
+        "Tet10 tip deflection ratio {}",
+        results[0]
+    );
+    // Tet4 locks in bending at this level: markedly stiffer.
+    assert!(results[1] < 0.9, "Tet4 ratio {}", results[1]);
+}
+
+#[test]
+fn corotational_newton_converges_and_agrees_with_linear_for_small_loads() {
+    let mesh = box_mesh(Point3::origin(), Point3::new(0.03, 0.06, 0.2), [2, 4, 8]);
+    let mut gaps = Vec::new();
+    for scale in [1e-3, 2e-3] {
+        let g = Some(Vector3::new(9.81 * scale, 0.0, 0.0));
+        let lin = clamped_model(mesh.clone(), Formulation::Linear, g, false);
+        let cor = clamped_model(mesh.clone(), Formulation::Corotational, g, false);
+        let mut chol = Cholesky::new(&lin.pattern).unwrap();
+        let ul = solve_static(&lin, &mut chol, &StaticOptions::default()).unwrap();
+        let opts = StaticOptions {
+            load_steps: 2,
+            ..StaticOptions::default()
+        };
+        let uc = solve_static(&cor, &mut chol, &opts).unwrap();
+        assert!(uc.residual <= 1e-10, "residual {:e}", uc.residual);
+        assert!(
+            uc.iterations.iter().all(|&i| (1..=8).contains(&i)),
+            "iterations {:?}",
+            uc.iterations
+        );
+        let diff: Vec<f64> = ul.d.iter().zip(&uc.d).map(|(a, b)| a - b).collect();
+        gaps.push(norm(&diff) / norm(&ul.d));
+    }
+    // The relative gap is O(load): doubling the load doubles it (difference O(load²)).
+    let ratio = gaps[1] / gaps[0];
+    assert!((ratio - 2.0).abs() < 0.1, "gaps {gaps:?}");
+}
+
+/// Dense K (all free DOFs) and the lumped mass on the free DOFs.
+fn dense_k_and_m(model: &Model) -> (nalgebra::DMatrix<f64>, Vec<f64>) {
+    let mut k = vec![0.0; model.pattern.nnz()];
+    let mut rot = Rotations::identity(model);
+    let mut ws = Workspace::new(model);
+    let d = vec![0.0; model.n_dofs()];
+    evaluate(
+        model,
+        &d,
+        &mut rot,
+        &mut ws,
+        Request {
+            forces: None,
+            tangent: Some(&mut k),
+            update_rotations: false,
+        },
+    );
+    let n = model.n_free;
+    let mut dense = nalgebra::DMatrix::zeros(n, n);
+    let p = &model.pattern;
+    for c in 0..n {
+        for idx in p.col_ptr[c]..p.col_ptr[c + 1] {
+            let r = p.row_idx[idx];
+            dense[(r, c)] = k[idx];
+            dense[(c, r)] = k[idx];
+        }
+    }
+    let lumped = model.lumped_mass.as_ref().unwrap();
+    let mut m = vec![0.0; n];
+    for (dof, &eq) in model.equation.iter().enumerate() {
+        if eq != xfem_cut::model::NONE {
+            m[eq as usize] = lumped[dof / 3];
+        }
+    }
+    (dense, m)
+}
+
+#[test]
+fn newmark_conserves_energy_and_oscillates_at_the_first_eigenfrequency() {
+    use xfem_cut::dynamics::{DynamicOptions, Newmark};
+    let mesh = box_mesh(Point3::origin(), Point3::new(0.03, 0.06, 0.2), [1, 2, 5]);
+    let model = clamped_model(mesh, Formulation::Linear, None, true);
+    let (k, m) = dense_k_and_m(&model);
+    let n = model.n_free;
+    // First mode of (K, M): eigen of M^-1/2 K M^-1/2.
+    let s = nalgebra::DMatrix::from_fn(n, n, |i, j| k[(i, j)] / (m[i] * m[j]).sqrt());
+    let eig = s.symmetric_eigen();
+    let first = eig.eigenvalues.imin();
+    let omega = eig.eigenvalues[first].sqrt();
+    let period = 2.0 * std::f64::consts::PI / omega;
+    let mode: Vec<f64> = (0..n)
+        .map(|i| eig.eigenvectors[(i, first)] / m[i].sqrt())
+        .collect();
+
+    let dt = period / 100.0;
+    let steps = 10_000;
+    let chol = Cholesky::new(&model.pattern).unwrap();
+    let opts = DynamicOptions {
+        dt,
+        steps,
+        ..DynamicOptions::default()
+    };
+    let mut nm = Newmark::new(&model, chol, opts).unwrap();
+    // Start in the first mode, at rest, with the consistent acceleration a = −ω² φ.
+    let amp = 1e-3 / mode.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+    for (dof, &eq) in model.equation.iter().enumerate() {
+        if eq != xfem_cut::model::NONE {
+            nm.state.d[dof] = amp * mode[eq as usize];
+            nm.state.a[dof] = -omega * omega * amp * mode[eq as usize];
+        }
+    }
+    let e0 = nm.energies();
+    let total0 = e0.kinetic + e0.strain;
+    let probe = model
+        .equation
+        .iter()
+        .position(|&eq| eq != xfem_cut::model::NONE && mode[eq as usize].abs() * amp > 0.5e-3)
+        .unwrap();
+    let mut crossings = Vec::new();
+    let mut prev = nm.state.d[probe];
+    let mut max_drift: f64 = 0.0;
+    for step in 1..=steps {
+        nm.step().unwrap();
+        let x = nm.state.d[probe];
+        if prev > 0.0 && x <= 0.0 {
+            // Linear interpolation of the downward zero crossing.
+            crossings.push((step as f64 - 1.0 + prev / (prev - x)) * dt);
+        }
+        prev = x;
+        if step % 100 == 0 || step == steps {
+            let e = nm.energies();
+            max_drift = max_drift.max(((e.kinetic + e.strain) - total0).abs() / total0);
+        }
+    }
+    assert_eq!(nm.factorisations(), 1, "a linear scene factorises once");
+    assert!(max_drift <= 1e-8, "energy drift {max_drift:e}");
+    let measured = (crossings[crossings.len() - 1] - crossings[0]) / (crossings.len() - 1) as f64;
+    assert!(
+        (measured / period - 1.0).abs() < 0.01,
+        "period {measured} vs eigen {period}"
+    );
+}
