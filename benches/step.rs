@@ -41,6 +41,7 @@ fn model(mesh: TetMesh, formulation: Formulation) -> Model {
         cut: None,
         fixed,
         gravity: Some(Vector3::new(9.81, 0.0, 0.0)),
+        body_force: None,
         tractions: &[],
         need_mass: true,
     })

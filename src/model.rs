@@ -83,6 +83,8 @@ pub struct ModelInput<'a> {
     /// Per node: which components are prescribed and their values.
     pub fixed: Vec<(usize, [Option<f64>; 3])>,
     pub gravity: Option<Vector3<f64>>,
+    /// A body force per unit volume that varies in space (manufactured solutions), added to gravity.
+    pub body_force: Option<&'a (dyn Fn(&Point3<f64>) -> Vector3<f64> + Sync)>,
     pub tractions: &'a [Traction],
     /// Whether to build the lumped mass (dynamic scenes only).
     pub need_mass: bool,
@@ -159,6 +161,7 @@ impl Model {
             cut,
             fixed,
             gravity,
+            body_force,
             tractions,
             need_mass,
         } = input;
@@ -179,7 +182,12 @@ impl Model {
             ElementKind::Tet4 => 1,
             ElementKind::Tet10 => 2,
         });
-        let load_rule = stiffness_rule;
+        // Gravity is constant (degree = shape degree); a varying body force gets degree 5.
+        let load_rule = if body_force.is_some() {
+            quadrature::rule(5)
+        } else {
+            stiffness_rule
+        };
         let mass_rule = quadrature::rule(match kind {
             ElementKind::Tet4 => 2,
             ElementKind::Tet10 => 4,
@@ -298,7 +306,7 @@ impl Model {
                 }
                 // Loads and mass: shape values on the cell.
                 let mut shape_val = vec![0.0; m];
-                if let Some(g) = gravity {
+                if gravity.is_some() || body_force.is_some() {
                     for q in load_rule {
                         let (bary, w) = map_point(&verts, &cell.vertices, q, cell_volume);
                         eval_shapes(
@@ -309,10 +317,18 @@ impl Model {
                             &mut nvals,
                             &mut shape_val,
                         );
+                        let mut f = gravity.map_or(Vector3::zeros(), |g| g * rho);
+                        if let Some(bf) = body_force {
+                            let x = verts
+                                .iter()
+                                .zip(bary)
+                                .fold(Vector3::zeros(), |s, (p, l)| s + p.coords * l);
+                            f += bf(&Point3::from(x));
+                        }
                         for (a, &phi) in shape_val.iter().enumerate() {
                             let s = shape_ids[first + a] as usize;
                             for c in 0..3 {
-                                load[3 * s + c] += w * rho * g[c] * phi;
+                                load[3 * s + c] += w * f[c] * phi;
                             }
                         }
                     }

@@ -801,6 +801,7 @@ impl Scene {
             cut,
             fixed,
             gravity: self.gravity,
+            body_force: None,
             tractions: &tractions,
             need_mass,
         })

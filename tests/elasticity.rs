@@ -64,6 +64,7 @@ fn model_with_boundary_field(
         cut: None,
         fixed,
         gravity: None,
+        body_force: None,
         tractions: &[],
         need_mass: false,
     })
@@ -135,6 +136,7 @@ fn tet10_reproduces_a_quadratic_field_with_its_body_force() {
         cut: None,
         fixed,
         gravity: Some(g),
+        body_force: None,
         tractions: &[],
         need_mass: false,
     })
@@ -182,6 +184,7 @@ fn rigid_rotation_gives_zero_corotational_force_and_linear_ghost_forces() {
                 cut: None,
                 fixed: vec![],
                 gravity: None,
+                body_force: None,
                 tractions: &[],
                 need_mass: false,
             })
@@ -245,6 +248,7 @@ fn clamped_model(
         cut: None,
         fixed,
         gravity,
+        body_force: None,
         tractions: &[],
         need_mass,
     })
@@ -426,4 +430,104 @@ fn newmark_conserves_energy_and_oscillates_at_the_first_eigenfrequency() {
         (measured / period - 1.0).abs() < 0.01,
         "period {measured} vs eigen {period}"
     );
+}
+
+/// Relative L2 error of the model's displacement against `exact` (degree-5 quadrature).
+fn l2_error(model: &Model, d: &[f64], exact: impl Fn(&Point3<f64>) -> Vector3<f64>) -> f64 {
+    use xfem_cut::element::shape_values;
+    use xfem_cut::quadrature::DEGREE5;
+    let (mut err, mut norm2) = (0.0, 0.0);
+    let mut n = [0.0; 10];
+    for e in 0..model.mesh.n_elements() {
+        let p = model.mesh.vertex_points(e);
+        let vol = model.mesh.volume(e);
+        for q in &DEGREE5 {
+            let x = Point3::from(
+                p.iter()
+                    .zip(q.bary)
+                    .fold(Vector3::zeros(), |s, (pi, l)| s + pi.coords * l),
+            );
+            shape_values(model.mesh.kind, &q.bary, &mut n);
+            let mut uh = Vector3::zeros();
+            for (k, &i) in model.mesh.element(e).iter().enumerate() {
+                uh += Vector3::new(d[3 * i], d[3 * i + 1], d[3 * i + 2]) * n[k];
+            }
+            let u = exact(&x);
+            err += q.weight * vol * (uh - u).norm_squared();
+            norm2 += q.weight * vol * u.norm_squared();
+        }
+    }
+    (err / norm2).sqrt()
+}
+
+#[test]
+fn manufactured_solution_converges_at_order_2_for_tet4_and_3_for_tet10() {
+    use std::f64::consts::PI;
+    let lame = xfem_cut::material::Lame::from(MAT);
+    let (lambda, mu) = (lame.lambda, lame.mu);
+    let amp = 1e-3;
+    // u_i = amp sin(πx) sin(πy) sin(πz) for every component; zero on the boundary of the unit cube.
+    let exact = move |p: &Point3<f64>| {
+        let s = (PI * p.x).sin() * (PI * p.y).sin() * (PI * p.z).sin();
+        Vector3::new(s, s, s) * amp
+    };
+    // f = −div σ = −(μ Δu + (λ+μ) ∇ div u).
+    let force = move |p: &Point3<f64>| {
+        let (sx, sy, sz) = ((PI * p.x).sin(), (PI * p.y).sin(), (PI * p.z).sin());
+        let (cx, cy, cz) = ((PI * p.x).cos(), (PI * p.y).cos(), (PI * p.z).cos());
+        let s = sx * sy * sz;
+        let pi2 = PI * PI;
+        let grad_div = Vector3::new(
+            -pi2 * s + pi2 * (cx * cy * sz + cx * sy * cz),
+            -pi2 * s + pi2 * (cx * cy * sz + sx * cy * cz),
+            -pi2 * s + pi2 * (cx * sy * cz + sx * cy * cz),
+        );
+        -(Vector3::new(1.0, 1.0, 1.0) * (-3.0 * pi2 * s * mu) + grad_div * (lambda + mu)) * amp
+    };
+    for (tet10, levels, min_order) in [(false, [4usize, 8, 16], 1.9), (true, [2, 4, 8], 2.8)] {
+        let mut errors = Vec::new();
+        for n in levels {
+            let mesh = box_mesh(Point3::origin(), Point3::new(1.0, 1.0, 1.0), [n, n, n]);
+            let mesh = if tet10 { mesh.to_tet10() } else { mesh };
+            let fixed = mesh
+                .nodes
+                .iter()
+                .enumerate()
+                .filter(|(_, p)| on_boundary(p))
+                .map(|(i, _)| (i, [Some(0.0); 3]))
+                .collect();
+            let model = Model::build(ModelInput {
+                mesh,
+                material: MAT,
+                formulation: Formulation::Linear,
+                cut: None,
+                fixed,
+                gravity: None,
+                body_force: Some(&force),
+                tractions: &[],
+                need_mass: false,
+            })
+            .unwrap();
+            let mut chol = Cholesky::new(&model.pattern).unwrap();
+            let sol = solve_static(&model, &mut chol, &StaticOptions::default()).unwrap();
+            errors.push(l2_error(&model, &sol.d, exact));
+            let (nodal, scale) = max_node_error(&model, &sol.d, exact);
+            println!("n = {n}: nodal max error {:.3e}", nodal / scale);
+        }
+        // Least-squares slope of log e against log h over the three levels.
+        let xs: Vec<f64> = levels.iter().map(|&n| (1.0 / n as f64).ln()).collect();
+        let ys: Vec<f64> = errors.iter().map(|e| e.ln()).collect();
+        let (mx, my) = (xs.iter().sum::<f64>() / 3.0, ys.iter().sum::<f64>() / 3.0);
+        let slope = xs
+            .iter()
+            .zip(&ys)
+            .map(|(x, y)| (x - mx) * (y - my))
+            .sum::<f64>()
+            / xs.iter().map(|x| (x - mx).powi(2)).sum::<f64>();
+        println!("tet10 = {tet10}: L2 errors {errors:?}, observed order {slope:.3}");
+        assert!(
+            slope >= min_order,
+            "tet10 = {tet10}: order {slope} < {min_order} (errors {errors:?})"
+        );
+    }
 }
