@@ -133,7 +133,9 @@ impl TetMesh {
             for &(a, b) in &TET10_EDGES {
                 let key = (v[a].min(v[b]), v[a].max(v[b]));
                 let id = *edge_node.entry(key).or_insert_with(|| {
-                    nodes.push(Point3::from((nodes[key.0].coords + nodes[key.1].coords) * 0.5));
+                    nodes.push(Point3::from(
+                        (nodes[key.0].coords + nodes[key.1].coords) * 0.5,
+                    ));
                     nodes.len() - 1
                 });
                 cells.push(id);
