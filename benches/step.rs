@@ -4,7 +4,7 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use nalgebra::{Point3, Vector3};
 use std::hint::black_box;
 use xfem_cut::assembly::{evaluate, Request, Rotations, Workspace};
-use xfem_cut::dynamics::{DynamicOptions, Newmark};
+use xfem_cut::dynamics::{DynamicOptions, LinearSolver, Newmark};
 use xfem_cut::material::Material;
 use xfem_cut::mesh::{box_mesh, TetMesh};
 use xfem_cut::model::{Formulation, Model, ModelInput};
@@ -48,6 +48,10 @@ fn model(mesh: TetMesh, formulation: Formulation) -> Model {
     .unwrap()
 }
 
+fn chol_new(m: &Model) -> Cholesky {
+    Cholesky::new(&m.pattern).unwrap()
+}
+
 fn benches(c: &mut Criterion) {
     let sizes = [
         ("1k", [3, 6, 10], false),
@@ -86,18 +90,35 @@ fn benches(c: &mut Criterion) {
                 },
                 m.mesh.n_elements()
             );
-            let chol = Cholesky::new(&m.pattern).unwrap();
-            let opts = DynamicOptions {
-                dt: 0.01,
-                steps: 1,
-                max_iterations: 1,
-                ..DynamicOptions::default()
+            let solvers: &[(&str, LinearSolver)] = if formulation == Formulation::Linear {
+                &[("", LinearSolver::Direct)]
+            } else {
+                &[
+                    ("/direct", LinearSolver::Direct),
+                    (
+                        "/pcg",
+                        LinearSolver::Pcg {
+                            tolerance: 1e-8,
+                            max_cg: 25,
+                        },
+                    ),
+                ]
             };
-            let mut nm = Newmark::new(&m, chol, opts).unwrap();
-            nm.step().unwrap();
-            g.bench_function(BenchmarkId::new(name, label), |b| {
-                b.iter(|| black_box(nm.step().unwrap()))
-            });
+            for (solver_name, solver) in solvers {
+                let opts = DynamicOptions {
+                    dt: 0.01,
+                    steps: 1,
+                    max_iterations: 1,
+                    linear_solver: *solver,
+                    ..DynamicOptions::default()
+                };
+                let mut nm = Newmark::new(&m, chol_new(&m), opts).unwrap();
+                nm.step().unwrap();
+                g.bench_function(
+                    BenchmarkId::new(format!("{name}{solver_name}"), label),
+                    |b| b.iter(|| black_box(nm.step().unwrap())),
+                );
+            }
         }
         // The assembly alone (rotations + forces + tangent) for the corotational step.
         let m = model(beam(div, tet10), Formulation::Corotational);

@@ -9,8 +9,18 @@
 
 use crate::assembly::{evaluate, gather_free, tangent_product, Request, Rotations, Workspace};
 use crate::model::{Formulation, Model, NONE};
-use crate::solve::{Cholesky, SolveError};
+use crate::solve::{Cholesky, Pcg, SolveError};
 use crate::statics::norm;
+
+/// How the Newton systems of a corotational step are solved.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum LinearSolver {
+    /// Numeric refactorisation every iteration (symbolic once).
+    Direct,
+    /// CG preconditioned by the last factorisation; refactorise only when CG
+    /// needs more than `max_cg` iterations.
+    Pcg { tolerance: f64, max_cg: usize },
+}
 
 /// Mass matrix used in the time integration.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -33,6 +43,7 @@ pub struct DynamicOptions {
     /// Newton tolerance (relative residual) and iteration cap per step.
     pub tolerance: f64,
     pub max_iterations: usize,
+    pub linear_solver: LinearSolver,
 }
 
 impl Default for DynamicOptions {
@@ -48,6 +59,7 @@ impl Default for DynamicOptions {
             mass: MassKind::Lumped,
             tolerance: 1e-8,
             max_iterations: 20,
+            linear_solver: LinearSolver::Direct,
         }
     }
 }
@@ -105,8 +117,10 @@ pub struct Newmark<'m> {
     mv: Vec<f64>,
     a_new: Vec<f64>,
     v_new: Vec<f64>,
-    /// Whether K_eff is factorised and still valid (linear scenes).
+    /// Whether a factorisation of K_eff exists (current for linear scenes, maybe stale for PCG).
     factored: bool,
+    pcg: Pcg,
+    dx: Vec<f64>,
     pub state: State,
     /// Strain energy of the current state.
     pub strain_energy: f64,
@@ -138,6 +152,8 @@ impl<'m> Newmark<'m> {
             a_new: vec![0.0; n],
             v_new: vec![0.0; n],
             factored: false,
+            pcg: Pcg::new(model.n_free),
+            dx: vec![0.0; model.n_free],
             state: State {
                 time: 0.0,
                 d: vec![0.0; n],
@@ -151,6 +167,11 @@ impl<'m> Newmark<'m> {
 
     pub fn factorisations(&self) -> usize {
         self.chol.factorisations
+    }
+
+    /// CG iterations done so far (PCG mode).
+    pub fn cg_iterations(&self) -> usize {
+        self.pcg.iterations
     }
 
     /// y = M x (all DOFs).
@@ -329,10 +350,32 @@ impl<'m> Newmark<'m> {
                     *k = k_factor * t;
                 }
                 self.add_mass_to_keff(m_factor);
-                self.chol.factorize(&self.keff)?;
-                self.factored = true;
             }
-            self.chol.solve_in_place(&mut self.r_free);
+            let solved = match (o.linear_solver, need_tangent && self.factored && !linear) {
+                (LinearSolver::Pcg { tolerance, max_cg }, true) => {
+                    let ok = self.pcg.solve(
+                        &model.pattern,
+                        &self.keff,
+                        &mut self.chol,
+                        &self.r_free,
+                        &mut self.dx,
+                        tolerance,
+                        max_cg,
+                    );
+                    if ok {
+                        self.r_free.copy_from_slice(&self.dx);
+                    }
+                    ok
+                }
+                _ => false,
+            };
+            if !solved {
+                if need_tangent {
+                    self.chol.factorize(&self.keff)?;
+                    self.factored = true;
+                }
+                self.chol.solve_in_place(&mut self.r_free);
+            }
             for (dof, &eq) in model.equation.iter().enumerate() {
                 if eq != NONE {
                     d[dof] += self.r_free[eq as usize];

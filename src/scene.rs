@@ -3,7 +3,7 @@
 //! Every error names the file, the key and the value; unknown keys are errors.
 
 use crate::cut::{CutSetup, PlanarPatch};
-use crate::dynamics::{DynamicOptions, MassKind};
+use crate::dynamics::{DynamicOptions, LinearSolver, MassKind};
 use crate::material::Material;
 use crate::mesh::{box_mesh, ElementKind, TetMesh};
 use crate::model::{Formulation, Model, ModelError, ModelInput, Traction};
@@ -589,6 +589,19 @@ impl Scene {
                 if let Some(m) = max_iterations {
                     o.max_iterations = m;
                 }
+                o.linear_solver = match a.string("linear_solver")?.unwrap_or("direct") {
+                    "direct" => LinearSolver::Direct,
+                    "pcg" => LinearSolver::Pcg {
+                        tolerance: 1e-8,
+                        max_cg: 25,
+                    },
+                    other => {
+                        return Err(a.err(
+                            "linear_solver",
+                            format!("must be \"direct\" or \"pcg\", got \"{other}\""),
+                        ))
+                    }
+                };
                 let output_every = a
                     .usize("output_every")?
                     .unwrap_or_else(|| o.steps.div_ceil(100).max(1));
