@@ -531,3 +531,29 @@ fn manufactured_solution_converges_at_order_2_for_tet4_and_3_for_tet10() {
         );
     }
 }
+
+#[test]
+fn corotational_bend_dynamics_stay_bounded_for_1000_steps() {
+    let case =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/bend_dynamic_uncut.toml");
+    let scene = xfem_cut::scene::Scene::load(&case).unwrap();
+    let result = xfem_cut::run::solve_scene(&scene, 0, None, false).unwrap();
+    assert_eq!(result.timings.steps, 1000);
+    assert!(result.d.iter().all(|x| x.is_finite()));
+    // After the ramp (0.5 s) the prescribed edge is still: no work enters and the
+    // damped energy must not grow.
+    let after: Vec<f64> = result
+        .energies
+        .iter()
+        .filter(|(t, _)| *t >= 1.0)
+        .map(|(_, e)| e.kinetic + e.strain)
+        .collect();
+    let e0 = after[0];
+    let max = after.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    assert!(max <= e0 * (1.0 + 1e-6), "energy grew from {e0} to {max}");
+    println!(
+        "energy at 1 s {e0:.4e} J, at 10 s {:.4e} J; Newton iterations max {}",
+        after[after.len() - 1],
+        result.iterations.iter().max().unwrap()
+    );
+}
