@@ -26,3 +26,4 @@ pub mod run;
 pub mod scene;
 pub mod solve;
 pub mod statics;
+pub mod verify;
