@@ -20,7 +20,6 @@ impl Rotations {
 
 /// Scratch buffers sized for the largest element.
 pub struct Workspace {
-    ke: Vec<f64>,
     rotated: Vec<Vector3<f64>>,
     disp: Vec<Vector3<f64>>,
 }
@@ -34,7 +33,6 @@ impl Workspace {
             .max()
             .unwrap_or(0);
         Workspace {
-            ke: vec![0.0; 9 * m * m],
             rotated: vec![Vector3::zeros(); m],
             disp: vec![Vector3::zeros(); m],
         }
@@ -74,9 +72,6 @@ pub fn evaluate(
             let s = s as usize;
             ws.disp[a] = Vector3::new(d[3 * s], d[3 * s + 1], d[3 * s + 2]);
         }
-        if req.tangent.is_some() {
-            ws.ke[..9 * m * m].fill(0.0);
-        }
         for g in el.groups.clone() {
             let group = model.groups[g];
             let grads = &model.grads[group.grads as usize..group.grads as usize + m];
@@ -101,16 +96,27 @@ pub fn evaluate(
                     }
                 });
             }
-            if req.tangent.is_some() {
-                kernel.add_tangent(&mut ws.ke[..9 * m * m], &mut ws.rotated[..m]);
-            }
-        }
-        if let Some(k) = req.tangent.as_deref_mut() {
-            let map = &model.scatter[el.scatter..el.scatter + 9 * m * m];
-            for (pos, v) in map.iter().zip(&ws.ke[..9 * m * m]) {
-                if *pos != NONE {
-                    k[*pos as usize] += v;
-                }
+            if let Some(k) = req.tangent.as_deref_mut() {
+                // Each global lower entry is reached from exactly one of (a,b,i,j), (b,a,j,i).
+                let map = &model.scatter[el.scatter..el.scatter + 9 * m * m];
+                let n = 3 * m;
+                kernel.tangent_blocks(&mut ws.rotated[..m], |a, b, block| {
+                    for i in 0..3 {
+                        for j in 0..3 {
+                            let v = block[(i, j)];
+                            let p1 = map[(3 * a + i) * n + 3 * b + j];
+                            if p1 != NONE {
+                                k[p1 as usize] += v;
+                            }
+                            if a != b {
+                                let p2 = map[(3 * b + j) * n + 3 * a + i];
+                                if p2 != NONE {
+                                    k[p2 as usize] += v;
+                                }
+                            }
+                        }
+                    }
+                });
             }
         }
     }

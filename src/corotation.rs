@@ -23,20 +23,30 @@ pub fn polar_rotation(f: &Matrix3<f64>, guess: &Matrix3<f64>) -> Matrix3<f64> {
     if scale == 0.0 || det <= 1e-6 * scale * scale * scale {
         return guess * svd_rotation(&g);
     }
-    // Higham's scaled Newton iteration X ← (ζX + (ζX)^−T)/2, ζ = |det X|^(−1/3).
+    // Higham's Newton iteration X ← (ζX + (ζX)^−T)/2, scaled by ζ = |det X|^(−1/3)
+    // while far from converged; it converges quadratically, so once a step
+    // changes X by less than 1e-8 one more step reaches round-off.
     let mut x = g;
+    let mut scaled = true;
     for _ in 0..50 {
-        let d = x.determinant();
         let Some(inv) = x.try_inverse() else {
             return guess * svd_rotation(&g);
         };
-        let zeta = d.abs().powf(-1.0 / 3.0);
+        let zeta = if scaled {
+            1.0 / x.determinant().abs().cbrt()
+        } else {
+            1.0
+        };
         let next = (x * zeta + inv.transpose() / zeta) * 0.5;
         let change = (next - x).norm();
         x = next;
-        if change <= 1e-15 * 3f64.sqrt() {
+        if change < 1e-8 {
+            if let Some(inv) = x.try_inverse() {
+                x = (x + inv.transpose()) * 0.5;
+            }
             break;
         }
+        scaled = change > 1e-3;
     }
     guess * x
 }

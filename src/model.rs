@@ -705,29 +705,27 @@ impl<'a> GroupKernel<'a> {
         }
     }
 
-    /// Adds the tangent R K Rᵀ into the dense element matrix `k` (3m × 3m, row-major).
-    pub fn add_tangent(&self, k: &mut [f64], rotated: &mut [Vector3<f64>]) {
-        let m = self.grads.len();
-        let n = 3 * m;
+    /// The tangent R K Rᵀ block by block, for b ≤ a only (the matrix is
+    /// symmetric): calls `add(a, b, block)` with the 3×3 block (a, b).
+    pub fn tangent_blocks(
+        &self,
+        rotated: &mut [Vector3<f64>],
+        mut add: impl FnMut(usize, usize, &Matrix3<f64>),
+    ) {
         let (lambda, mu, w) = (self.lame.lambda, self.lame.mu, self.weight);
         for (r, g) in rotated.iter_mut().zip(self.grads) {
             *r = self.rotation * g;
         }
-        for a in 0..m {
+        for a in 0..self.grads.len() {
             let ra = rotated[a] * w;
-            for b in 0..m {
+            for b in 0..=a {
                 let rb = rotated[b];
                 let dot = mu * w * self.grads[a].dot(&self.grads[b]);
-                for i in 0..3 {
-                    let row = (3 * a + i) * n + 3 * b;
-                    for j in 0..3 {
-                        let mut v = lambda * ra[i] * rb[j] + mu * rb[i] * ra[j];
-                        if i == j {
-                            v += dot;
-                        }
-                        k[row + j] += v;
-                    }
-                }
+                let mut block = ra * rb.transpose() * lambda + rb * ra.transpose() * mu;
+                block[(0, 0)] += dot;
+                block[(1, 1)] += dot;
+                block[(2, 2)] += dot;
+                add(a, b, &block);
             }
         }
     }
