@@ -1,47 +1,611 @@
-//! Cut geometry: level sets, classification of tetrahedra, sub-tetrahedra.
-//! (Interface stub; the full module is being written.)
-use nalgebra::Point3;
+//! Cut geometry (seed section 4 and 5.2): the level set of the cut surface,
+//! the classification of tetrahedra, sub-tetrahedra on each side, and which
+//! nodes carry the shifted Heaviside enrichment.
+//!
+//! Rules:
+//! - Λ at every node (Tet10 mid-nodes too) is the signed distance to the
+//!   surface's plane (eq. 72–73), > 0 on the side the normal u × v points to.
+//!   Nodes closer than `snap` × (their smallest element size) lie on the cut
+//!   (Λ = 0), so no sub-tet thinner than that is created.
+//! - An element is *crossed* when its vertices have Λ of both strict signs
+//!   (the eight cases of seed figure 6, zeros included). A crossed element is
+//!   [`ElementCut::Cut`] when its plane section overlaps the patch, `partial`
+//!   when the section is not wholly inside (the crack front passes through it;
+//!   the cut is extended through the whole element, as the seed does).
+//! - Enriched nodes: every node with Λ ≠ 0 of a cut element; a node with Λ = 0
+//!   only when the patch really separates its star: elements of both signs
+//!   around it, every crossed star element cut, every star face lying in the
+//!   plane inside the patch. So a crack front that runs along mesh nodes closes
+//!   there exactly, and a cut along a node layer separates the body.
+//! - Elements that only touch the cut and hold enriched nodes are
+//!   [`ElementCut::Touched`]: their enriched nodes of the other side get
+//!   ψ = (side − H_i)/2 ≠ 0.
 
-pub struct SubTet {
-    pub vertices: [Point3<f64>; 4],
-    pub side: i8,
-}
-pub enum ElementCut {
-    Uncut,
-    Touched {
-        side: i8,
-    },
-    Cut {
-        sub_tets: Vec<SubTet>,
-        partial: bool,
-    },
-}
-pub struct CutSetup {
-    pub phi: Vec<f64>,
-    pub node_side: Vec<i8>,
-    pub enriched: Vec<Option<usize>>,
-    pub n_enriched: usize,
-    pub elements: Vec<ElementCut>,
-}
-pub fn psi(side: i8, node_side: i8) -> f64 {
-    f64::from(side - node_side) / 2.0
-}
-use nalgebra::Vector3;
+use crate::mesh::{tet_volume, TetMesh, TET_FACES};
+use nalgebra::{Point3, Vector3};
+
+/// Default snapping distance, relative to the element size: cuts closer than
+/// this to a node are moved onto it. 1e-4 keeps sub-tets at least 1e-4 h thin
+/// (condition numbers of the enriched blocks ~1e4, harmless for a direct
+/// solver) while moving the cut by at most 1e-4 h, far below the
+/// discretisation error.
 pub const DEFAULT_SNAP: f64 = 1e-4;
+
+/// A planar cut patch: origin + s u + t v, s, t ∈ [0, 1]; normal n = u × v / |u × v|.
+#[derive(Debug, Clone)]
 pub struct PlanarPatch {
     pub origin: Point3<f64>,
     pub u: Vector3<f64>,
     pub v: Vector3<f64>,
 }
-pub trait CutSurface: Send + Sync {}
-impl CutSurface for PlanarPatch {}
+
+/// A cut surface, so that a triangulated surface can implement it next.
+pub trait CutSurface: Send + Sync {
+    /// Signed distance Λ(x) to the supporting surface, eq. (72)–(73).
+    fn level_set(&self, x: &Point3<f64>) -> f64;
+    /// Whether the convex section polygon `poly` (points on the surface) overlaps the patch.
+    fn overlaps(&self, poly: &[Point3<f64>]) -> bool;
+    /// Whether `x` (on the surface) lies in the patch, with relative tolerance `tol`.
+    fn contains(&self, x: &Point3<f64>, tol: f64) -> bool;
+}
+
+impl PlanarPatch {
+    pub fn normal(&self) -> Vector3<f64> {
+        self.u.cross(&self.v).normalize()
+    }
+
+    /// Patch coordinates (s, t) of the projection of x.
+    pub fn coordinates(&self, x: &Point3<f64>) -> (f64, f64) {
+        let r = x - self.origin;
+        let (uu, uv, vv) = (
+            self.u.dot(&self.u),
+            self.u.dot(&self.v),
+            self.v.dot(&self.v),
+        );
+        let (ru, rv) = (r.dot(&self.u), r.dot(&self.v));
+        let det = uu * vv - uv * uv;
+        ((ru * vv - rv * uv) / det, (rv * uu - ru * uv) / det)
+    }
+}
+
+impl CutSurface for PlanarPatch {
+    fn level_set(&self, x: &Point3<f64>) -> f64 {
+        self.normal().dot(&(x - self.origin))
+    }
+
+    fn overlaps(&self, poly: &[Point3<f64>]) -> bool {
+        // Separating axes of two convex polygons in (s, t): the square's axes, then the polygon's edge normals.
+        let tol = 1e-9;
+        let pts: Vec<(f64, f64)> = poly.iter().map(|p| self.coordinates(p)).collect();
+        let (mut smin, mut smax, mut tmin, mut tmax) = (
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        );
+        for &(s, t) in &pts {
+            smin = smin.min(s);
+            smax = smax.max(s);
+            tmin = tmin.min(t);
+            tmax = tmax.max(t);
+        }
+        if smax < -tol || smin > 1.0 + tol || tmax < -tol || tmin > 1.0 + tol {
+            return false;
+        }
+        let square = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)];
+        let n = pts.len();
+        for i in 0..n {
+            let (a, b) = (pts[i], pts[(i + 1) % n]);
+            let axis = (-(b.1 - a.1), b.0 - a.0);
+            if axis.0 == 0.0 && axis.1 == 0.0 {
+                continue;
+            }
+            let proj = |p: &(f64, f64)| p.0 * axis.0 + p.1 * axis.1;
+            let (pmin, pmax) = pts
+                .iter()
+                .map(proj)
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+                    (l.min(v), h.max(v))
+                });
+            let (qmin, qmax) = square
+                .iter()
+                .map(proj)
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+                    (l.min(v), h.max(v))
+                });
+            let scale = (axis.0.abs() + axis.1.abs()) * tol;
+            if pmax < qmin - scale || qmax < pmin - scale {
+                return false;
+            }
+        }
+        true
+    }
+
+    fn contains(&self, x: &Point3<f64>, tol: f64) -> bool {
+        let (s, t) = self.coordinates(x);
+        (-tol..=1.0 + tol).contains(&s) && (-tol..=1.0 + tol).contains(&t)
+    }
+}
+
+/// A sub-tetrahedron of a cut element, positively oriented, on side +1 or −1.
+#[derive(Debug, Clone)]
+pub struct SubTet {
+    pub vertices: [Point3<f64>; 4],
+    pub side: i8,
+}
+
+/// How an element meets the cut.
+#[derive(Debug, Clone)]
+pub enum ElementCut {
+    /// No enrichment inside this element (all ψ = 0), including elements crossed by the plane outside the patch.
+    Uncut,
+    /// On one side of the cut, touching it; its enriched nodes with H_i ≠ side get ψ_i = (side − H_i)/2.
+    Touched { side: i8 },
+    /// Cut into sub-tets; `partial` when the crack front passes through it and the cut was extended.
+    Cut {
+        sub_tets: Vec<SubTet>,
+        partial: bool,
+    },
+}
+
+/// The cut set-up of a mesh.
+#[derive(Debug, Clone)]
+pub struct CutSetup {
+    /// Level set per node (0 after snapping).
+    pub phi: Vec<f64>,
+    /// H_i = +1 where Λ ≥ 0 (on the surface: the + side), else −1.
+    pub node_side: Vec<i8>,
+    /// Per node: index of its enriched DOF block.
+    pub enriched: Vec<Option<usize>>,
+    pub n_enriched: usize,
+    pub elements: Vec<ElementCut>,
+}
+
+impl CutSetup {
+    pub fn n_cut(&self) -> usize {
+        self.elements
+            .iter()
+            .filter(|e| matches!(e, ElementCut::Cut { .. }))
+            .count()
+    }
+
+    pub fn n_partial(&self) -> usize {
+        self.elements
+            .iter()
+            .filter(|e| matches!(e, ElementCut::Cut { partial: true, .. }))
+            .count()
+    }
+}
+
 #[derive(Debug, thiserror::Error)]
-#[error("cutting not implemented yet")]
-pub struct CutError;
+pub enum CutError {
+    #[error("cut[{0}] misses the body: no element is cut and no node lies on it")]
+    Misses(usize),
+    #[error("cut[{0}] is degenerate: u × v = 0 or not finite")]
+    Degenerate(usize),
+    #[error("only one [[cut]] per scene is supported so far (got {0})")]
+    TooMany(usize),
+}
+
+/// Shifted Heaviside value ψ = (H(x) − H_i)/2 ∈ {0, ±1}, eq. (58)–(59).
+pub fn psi(side: i8, node_side: i8) -> f64 {
+    f64::from(side - node_side) / 2.0
+}
+
+/// Classifies every element and builds the enrichment.
 pub fn setup_cut(
-    _mesh: &crate::mesh::TetMesh,
-    _surfaces: &[&dyn CutSurface],
-    _snap: f64,
+    mesh: &TetMesh,
+    surfaces: &[&dyn CutSurface],
+    snap: f64,
 ) -> Result<CutSetup, CutError> {
-    Err(CutError)
+    if surfaces.len() > 1 {
+        return Err(CutError::TooMany(surfaces.len()));
+    }
+    let surface = surfaces[0];
+    let n_nodes = mesh.n_nodes();
+    // Local size per node: the smallest longest-edge of its elements.
+    let mut h = vec![f64::INFINITY; n_nodes];
+    let mut star: Vec<Vec<usize>> = vec![Vec::new(); n_nodes];
+    for e in 0..mesh.n_elements() {
+        let he = mesh.element_size(e);
+        for &i in mesh.element(e) {
+            h[i] = h[i].min(he);
+            star[i].push(e);
+        }
+    }
+    let mut phi: Vec<f64> = mesh.nodes.iter().map(|p| surface.level_set(p)).collect();
+    if phi.iter().any(|p| !p.is_finite()) {
+        return Err(CutError::Degenerate(0));
+    }
+    for (p, hi) in phi.iter_mut().zip(&h) {
+        if p.abs() < snap * hi {
+            *p = 0.0;
+        }
+    }
+    let node_side: Vec<i8> = phi.iter().map(|&p| if p >= 0.0 { 1 } else { -1 }).collect();
+
+    // Crossed elements: cut when their section overlaps the patch.
+    let mut elements: Vec<ElementCut> = Vec::with_capacity(mesh.n_elements());
+    let mut crossed = vec![false; mesh.n_elements()];
+    for e in 0..mesh.n_elements() {
+        let v = mesh.vertices(e);
+        let p = mesh.vertex_points(e);
+        let f = v.map(|i| phi[i]);
+        let (pos, neg) = (
+            f.iter().filter(|&&x| x > 0.0).count(),
+            f.iter().filter(|&&x| x < 0.0).count(),
+        );
+        if pos == 0 || neg == 0 {
+            elements.push(ElementCut::Uncut);
+            continue;
+        }
+        crossed[e] = true;
+        let poly = section_polygon(&p, &f);
+        if !surface.overlaps(&poly) {
+            elements.push(ElementCut::Uncut);
+            continue;
+        }
+        let partial = !poly.iter().all(|x| surface.contains(x, 1e-9));
+        elements.push(ElementCut::Cut {
+            sub_tets: split_tet(&p, &f),
+            partial,
+        });
+    }
+
+    // Enriched nodes.
+    let mut enrich = vec![false; n_nodes];
+    for e in 0..mesh.n_elements() {
+        if matches!(elements[e], ElementCut::Cut { .. }) {
+            for &i in mesh.element(e) {
+                if phi[i] != 0.0 {
+                    enrich[i] = true;
+                }
+            }
+        }
+    }
+    for i in 0..n_nodes {
+        if phi[i] != 0.0 {
+            continue;
+        }
+        let (mut has_pos, mut has_neg, mut ok) = (false, false, true);
+        for &e in &star[i] {
+            let v = mesh.vertices(e);
+            has_pos |= v.iter().any(|&j| phi[j] > 0.0);
+            has_neg |= v.iter().any(|&j| phi[j] < 0.0);
+            if crossed[e] && !matches!(elements[e], ElementCut::Cut { .. }) {
+                ok = false;
+            }
+            for face in TET_FACES {
+                let tri = face.map(|k| v[k]);
+                if tri.iter().all(|&j| phi[j] == 0.0) {
+                    let c = Point3::from(
+                        tri.iter()
+                            .fold(Vector3::zeros(), |s, &j| s + mesh.nodes[j].coords)
+                            / 3.0,
+                    );
+                    if !surface.contains(&c, 1e-9) {
+                        ok = false;
+                    }
+                }
+            }
+        }
+        if ok && has_pos && has_neg {
+            enrich[i] = true;
+        }
+    }
+    let mut enriched = vec![None; n_nodes];
+    let mut n_enriched = 0;
+    for i in 0..n_nodes {
+        if enrich[i] {
+            enriched[i] = Some(n_enriched);
+            n_enriched += 1;
+        }
+    }
+    if n_enriched == 0 {
+        return Err(CutError::Misses(0));
+    }
+
+    // Elements that touch the cut with enriched nodes of the other side.
+    for e in 0..mesh.n_elements() {
+        if !matches!(elements[e], ElementCut::Uncut) || crossed[e] {
+            continue;
+        }
+        let v = mesh.vertices(e);
+        let side: i8 = if v.iter().any(|&j| phi[j] < 0.0) {
+            -1
+        } else {
+            1
+        };
+        if mesh
+            .element(e)
+            .iter()
+            .any(|&j| enrich[j] && psi(side, node_side[j]) != 0.0)
+        {
+            elements[e] = ElementCut::Touched { side };
+        }
+    }
+    Ok(CutSetup {
+        phi,
+        node_side,
+        enriched,
+        n_enriched,
+        elements,
+    })
+}
+
+/// Points where the plane Λ = 0 meets a crossed tet: zero vertices and
+/// strict sign-change edges, ordered around their centroid (a convex polygon).
+pub fn section_polygon(p: &[Point3<f64>; 4], f: &[f64; 4]) -> Vec<Point3<f64>> {
+    let mut pts = Vec::with_capacity(4);
+    for i in 0..4 {
+        if f[i] == 0.0 {
+            pts.push(p[i]);
+        }
+        for j in i + 1..4 {
+            if (f[i] > 0.0 && f[j] < 0.0) || (f[i] < 0.0 && f[j] > 0.0) {
+                pts.push(edge_point(p[i], p[j], f[i], f[j]));
+            }
+        }
+    }
+    if pts.len() == 4 {
+        // Order the quadrilateral around its centroid in the plane.
+        let c = pts.iter().fold(Vector3::zeros(), |s, q| s + q.coords) / 4.0;
+        let n = (pts[1] - pts[0]).cross(&(pts[2] - pts[0]));
+        let a = (pts[0].coords - c).normalize();
+        let b = n.cross(&a).normalize();
+        pts.sort_by(|x, y| {
+            let ax = (x.coords - c).dot(&b).atan2((x.coords - c).dot(&a));
+            let ay = (y.coords - c).dot(&b).atan2((y.coords - c).dot(&a));
+            ax.total_cmp(&ay)
+        });
+    }
+    pts
+}
+
+fn edge_point(a: Point3<f64>, b: Point3<f64>, fa: f64, fb: f64) -> Point3<f64> {
+    a + (b - a) * (fa / (fa - fb))
+}
+
+/// Splits a crossed tet (vertex level set values `f`, both strict signs
+/// present) into positively oriented sub-tets on each side.
+pub fn split_tet(p: &[Point3<f64>; 4], f: &[f64; 4]) -> Vec<SubTet> {
+    let idx =
+        |pred: &dyn Fn(f64) -> bool| -> Vec<usize> { (0..4).filter(|&i| pred(f[i])).collect() };
+    let pos = idx(&|x| x > 0.0);
+    let neg = idx(&|x| x < 0.0);
+    let zero = idx(&|x| x == 0.0);
+    let ep = |i: usize, j: usize| edge_point(p[i], p[j], f[i], f[j]);
+    let mut out: Vec<SubTet> = Vec::with_capacity(6);
+    let mut push = |v: [Point3<f64>; 4], side: i8| {
+        let mut v = v;
+        if tet_volume(&v) < 0.0 {
+            v.swap(1, 2);
+        }
+        if tet_volume(&v) > 0.0 {
+            out.push(SubTet { vertices: v, side });
+        }
+    };
+    // Prism with bottom (a0,a1,a2), top (b0,b1,b2), edges ai–bi.
+    let prism = |a: [Point3<f64>; 3], b: [Point3<f64>; 3]| -> [[Point3<f64>; 4]; 3] {
+        [
+            [a[0], a[1], a[2], b[2]],
+            [a[0], a[1], b[2], b[1]],
+            [a[0], b[1], b[2], b[0]],
+        ]
+    };
+    match (pos.len(), neg.len(), zero.len()) {
+        (1, 1, 2) => {
+            let (a, b) = (pos[0], neg[0]);
+            let x = ep(a, b);
+            push([p[zero[0]], p[zero[1]], p[a], x], 1);
+            push([p[zero[0]], p[zero[1]], p[b], x], -1);
+        }
+        (1, 2, 1) | (2, 1, 1) => {
+            let (lone, pair, lone_side) = if pos.len() == 1 {
+                (pos[0], [neg[0], neg[1]], 1)
+            } else {
+                (neg[0], [pos[0], pos[1]], -1)
+            };
+            let z = p[zero[0]];
+            let (pp, qq) = (ep(lone, pair[0]), ep(lone, pair[1]));
+            push([p[lone], pp, qq, z], lone_side);
+            push([z, p[pair[0]], p[pair[1]], qq], -lone_side);
+            push([z, p[pair[0]], qq, pp], -lone_side);
+        }
+        (1, 3, 0) | (3, 1, 0) => {
+            let (lone, rest, lone_side) = if pos.len() == 1 {
+                (pos[0], [neg[0], neg[1], neg[2]], 1)
+            } else {
+                (neg[0], [pos[0], pos[1], pos[2]], -1)
+            };
+            let x = rest.map(|r| ep(lone, r));
+            push([p[lone], x[0], x[1], x[2]], lone_side);
+            for t in prism(rest.map(|r| p[r]), x) {
+                push(t, -lone_side);
+            }
+        }
+        (2, 2, 0) => {
+            let (a, b, c, d) = (pos[0], pos[1], neg[0], neg[1]);
+            let (pp, qq, rr, ss) = (ep(a, c), ep(a, d), ep(b, c), ep(b, d));
+            for t in prism([p[a], pp, qq], [p[b], rr, ss]) {
+                push(t, 1);
+            }
+            for t in prism([p[c], pp, rr], [p[d], qq, ss]) {
+                push(t, -1);
+            }
+        }
+        _ => {}
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::box_mesh;
+    use proptest::prelude::*;
+
+    fn tet() -> [Point3<f64>; 4] {
+        [
+            Point3::new(0.1, -0.2, 0.05),
+            Point3::new(1.3, 0.1, -0.1),
+            Point3::new(0.2, 0.9, 0.3),
+            Point3::new(-0.1, 0.2, 1.1),
+        ]
+    }
+
+    fn check_split(p: &[Point3<f64>; 4], f: &[f64; 4]) {
+        let subs = split_tet(p, f);
+        let vol = tet_volume(p);
+        let total: f64 = subs.iter().map(|s| tet_volume(&s.vertices)).sum();
+        assert!(
+            (total - vol).abs() <= 1e-14 * vol,
+            "volumes {total} vs {vol} for {f:?}"
+        );
+        assert!(subs.iter().all(|s| tet_volume(&s.vertices) > 0.0));
+        assert!(
+            subs.iter().any(|s| s.side == 1) && subs.iter().any(|s| s.side == -1),
+            "{f:?}"
+        );
+        // Each sub-tet lies on its side: the level set (linear) at its vertices has that sign or is zero.
+        for s in &subs {
+            for v in &s.vertices {
+                let l = crate::mesh::barycentric(p, v).unwrap();
+                let fv: f64 = l.iter().zip(f).map(|(a, b)| a * b).sum();
+                assert!(
+                    fv * f64::from(s.side) >= -1e-12,
+                    "{f:?}: vertex on the wrong side"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn every_cut_case_and_permutation_splits_exactly() {
+        let patterns: [[f64; 4]; 4] = [
+            [0.0, 0.0, 1.0, -1.0],
+            [0.0, 1.0, -1.0, -2.0],
+            [1.0, -1.0, -2.0, -0.5],
+            [1.0, 2.0, -1.0, -0.5],
+        ];
+        let p = tet();
+        for pat in patterns {
+            for sign in [1.0, -1.0] {
+                // All 24 permutations of the vertex values.
+                for a in 0..4 {
+                    for b in 0..4 {
+                        for c in 0..4 {
+                            for d in 0..4 {
+                                let perm = [a, b, c, d];
+                                let mut seen = [false; 4];
+                                if perm.iter().any(|&i| std::mem::replace(&mut seen[i], true)) {
+                                    continue;
+                                }
+                                let f = perm.map(|i| sign * pat[i]);
+                                check_split(&p, &f);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn touching_cases_are_not_cut() {
+        // Vertex, edge, face touching: one sign only, so nothing is split.
+        for f in [
+            [0.0, 1.0, 2.0, 3.0],
+            [0.0, 0.0, -1.0, -2.0],
+            [0.0, 0.0, 0.0, 1.0],
+        ] {
+            assert!(split_tet(&tet(), &f).is_empty());
+        }
+    }
+
+    proptest! {
+        #[test]
+        fn random_planes_split_volumes_exactly(nx in -1.0..1.0f64, ny in -1.0..1.0f64, nz in -1.0..1.0f64, off in -0.5..0.5f64, eps_exp in 3i32..13) {
+            let p = tet();
+            let n = Vector3::new(nx, ny, nz);
+            prop_assume!(n.norm() > 0.1);
+            let c = p.iter().fold(Vector3::zeros(), |s, q| s + q.coords) / 4.0;
+            let mut f = p.map(|q| n.dot(&(q.coords - c)) + off);
+            // Also a plane within 10^-k of a vertex.
+            let f_near = { let mut g = f; let s = g[0]; for x in g.iter_mut() { *x -= s - 10f64.powi(-eps_exp); } g };
+            for g in [f, f_near] {
+                if g.iter().any(|&x| x > 0.0) && g.iter().any(|&x| x < 0.0) {
+                    check_split(&p, &g);
+                }
+            }
+            f[1] = 0.0;
+            if f.iter().any(|&x| x > 0.0) && f.iter().any(|&x| x < 0.0) {
+                check_split(&p, &f);
+            }
+        }
+    }
+
+    fn patch(origin: [f64; 3], u: [f64; 3], v: [f64; 3]) -> PlanarPatch {
+        PlanarPatch {
+            origin: Point3::from(origin),
+            u: Vector3::from(u),
+            v: Vector3::from(v),
+        }
+    }
+
+    #[test]
+    fn full_cut_on_a_node_layer_enriches_the_layer() {
+        let m = box_mesh(Point3::origin(), Point3::new(1.0, 1.0, 2.0), [2, 2, 4]);
+        let s = patch([0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
+        let c = setup_cut(&m, &[&s], DEFAULT_SNAP).unwrap();
+        let layer: Vec<usize> = (0..m.n_nodes()).filter(|&i| m.nodes[i].z == 1.0).collect();
+        assert_eq!(layer.len(), 9);
+        assert!(layer.iter().all(|&i| c.enriched[i].is_some()));
+        assert_eq!(c.n_enriched, 9);
+        assert_eq!(c.n_cut(), 0);
+        // Elements below the layer touching it are Touched{-1}; above, nothing to enrich (ψ = 0).
+        let touched = c
+            .elements
+            .iter()
+            .filter(|e| matches!(e, ElementCut::Touched { side: -1 }))
+            .count();
+        assert!(touched > 0);
+        assert!(c
+            .elements
+            .iter()
+            .all(|e| !matches!(e, ElementCut::Touched { side: 1 })));
+    }
+
+    #[test]
+    fn seed_crack_front_on_nodes_is_not_enriched_and_mid_element_front_is_partial() {
+        let s = patch([0.0, 0.0, 0.1], [0.015, 0.0, 0.0], [0.0, 0.06, 0.0]);
+        // z = 0.1 on a node layer: the front line x = 0.015 runs along nodes.
+        let m = box_mesh(Point3::origin(), Point3::new(0.03, 0.06, 0.2), [2, 4, 14]);
+        let c = setup_cut(&m, &[&s], DEFAULT_SNAP).unwrap();
+        for i in 0..m.n_nodes() {
+            let p = m.nodes[i];
+            if (p.z - 0.1).abs() < 1e-12 {
+                let expect = p.x < 0.015 - 1e-12;
+                assert_eq!(c.enriched[i].is_some(), expect, "node at {p:?}");
+            }
+        }
+        // z = 0.1 inside elements (13 divisions), front at x = 0.015 on element faces: fully cut elements only.
+        let m = box_mesh(Point3::origin(), Point3::new(0.03, 0.06, 0.2), [2, 4, 13]);
+        let c = setup_cut(&m, &[&s], DEFAULT_SNAP).unwrap();
+        assert!(c.n_cut() > 0);
+        // 3 divisions in x: the front x = 0.015 is inside elements, which are partial.
+        let m = box_mesh(Point3::origin(), Point3::new(0.03, 0.06, 0.2), [3, 4, 13]);
+        let c = setup_cut(&m, &[&s], DEFAULT_SNAP).unwrap();
+        assert!(c.n_partial() > 0);
+    }
+
+    #[test]
+    fn a_cut_beside_the_body_is_an_error() {
+        let m = box_mesh(Point3::origin(), Point3::new(1.0, 1.0, 1.0), [2, 2, 2]);
+        let s = patch([2.0, 0.0, 0.5], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
+        assert!(matches!(
+            setup_cut(&m, &[&s], DEFAULT_SNAP),
+            Err(CutError::Misses(0))
+        ));
+    }
 }
