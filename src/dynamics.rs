@@ -165,6 +165,53 @@ impl<'m> Newmark<'m> {
         })
     }
 
+    /// Sets the acceleration consistent with the current state: M a = f_ext − f_int − D v
+    /// on the free DOFs (the lumped mass is diagonal; a consistent mass is factorised once for it).
+    pub fn initialise_acceleration(&mut self) -> Result<(), DynamicError> {
+        let model = self.model;
+        self.strain_energy = evaluate(
+            model,
+            &self.state.d,
+            &mut self.state.rotations,
+            &mut self.ws,
+            Request {
+                forces: Some(&mut self.f_int),
+                tangent: None,
+                update_rotations: model.formulation == Formulation::Corotational,
+            },
+        );
+        for i in 0..self.r_full.len() {
+            self.r_full[i] = model.load[i] - self.f_int[i];
+        }
+        gather_free(model, &self.r_full, &mut self.r_free);
+        // M a = r on the free DOFs: M on the pattern (the lumped one has
+        // u–a couplings at enriched nodes), factorised once for this.
+        self.keff.fill(0.0);
+        self.add_mass_to_keff(1.0);
+        // Zero-mass DOFs (none in practice) would make M singular: give them unit mass.
+        for eq in 0..model.n_free {
+            let pos = model
+                .pattern
+                .position(eq, eq)
+                .expect("diagonal is in the pattern");
+            if self.keff[pos] <= 0.0 {
+                self.keff[pos] = 1.0;
+            }
+        }
+        let mass = std::mem::take(&mut self.keff);
+        let result = self.chol.factorize(&mass);
+        self.keff = mass;
+        result?;
+        self.chol.solve_in_place(&mut self.r_free);
+        self.factored = false;
+        for (dof, &eq) in model.equation.iter().enumerate() {
+            if eq != NONE {
+                self.state.a[dof] = self.r_free[eq as usize];
+            }
+        }
+        Ok(())
+    }
+
     pub fn factorisations(&self) -> usize {
         self.chol.factorisations
     }
@@ -183,6 +230,18 @@ impl<'m> Newmark<'m> {
                 for (s, ms) in lumped.iter().enumerate() {
                     for c in 0..3 {
                         y[3 * s + c] = ms * x[3 * s + c];
+                    }
+                }
+                // Side-wise lumping couples u_i and a_i of each enriched node.
+                if let (Some(cut), Some(coupling)) = (&m.cut, &m.lumped_coupling) {
+                    for (i, e) in cut.enriched.iter().enumerate() {
+                        if let Some(j) = *e {
+                            let sa = m.mesh.n_nodes() + j;
+                            for c in 0..3 {
+                                y[3 * i + c] += coupling[j] * x[3 * sa + c];
+                                y[3 * sa + c] += coupling[j] * x[3 * i + c];
+                            }
+                        }
                     }
                 }
             }
@@ -418,6 +477,25 @@ impl<'m> Newmark<'m> {
                                 .position(eq, eq)
                                 .expect("diagonal is in the pattern");
                             self.keff[pos] += factor * ms;
+                        }
+                    }
+                }
+                if let (Some(cut), Some(coupling)) = (&model.cut, &model.lumped_coupling) {
+                    for (i, e) in cut.enriched.iter().enumerate() {
+                        if let Some(j) = *e {
+                            let sa = model.mesh.n_nodes() + j;
+                            for c in 0..3 {
+                                let (r, q) =
+                                    (model.equation[3 * sa + c], model.equation[3 * i + c]);
+                                if r != NONE && q != NONE {
+                                    let (r, q) = (r.max(q) as usize, r.min(q) as usize);
+                                    let pos = model
+                                        .pattern
+                                        .position(r, q)
+                                        .expect("u_i and a_i share elements");
+                                    self.keff[pos] += factor * coupling[j];
+                                }
+                            }
                         }
                     }
                 }

@@ -119,6 +119,9 @@ pub struct Model {
     pub load: Vec<f64>,
     /// Lumped mass per shape function (seed eq. 81–82 for enriched ones), if built.
     pub lumped_mass: Option<Vec<f64>>,
+    /// Lumped coupling M^ua_ii per enriched node (index = enriched id), the
+    /// side-wise row sum that keeps separated parts' inertia exact (see [`lump_element_mass`]).
+    pub lumped_coupling: Option<Vec<f64>>,
     /// Consistent mass, lower triangle on the pattern, if built.
     pub consistent_mass: Option<Vec<f64>>,
 }
@@ -200,6 +203,7 @@ impl Model {
         let mut grads = Vec::new();
         let mut load = vec![0.0; 3 * n_shape];
         let mut lumped = need_mass.then(|| vec![0.0; n_shape]);
+        let mut coupling = need_mass.then(|| vec![0.0; n_enriched]);
         // Element-local consistent mass entries (shape a, shape b, value), for the optional consistent mass.
         let mut mass_entries: Vec<(Range<usize>, Vec<f64>)> = Vec::new();
 
@@ -362,21 +366,33 @@ impl Model {
                         }
                     }
                 }
-                if let Some(lumped) = lumped.as_mut() {
-                    lump_element_mass(
-                        kind,
-                        &me,
-                        m,
-                        nn,
-                        &enr_local,
-                        &cells,
-                        &verts,
-                        node_side,
-                        volume,
-                        rho,
-                        |a| shape_ids[first + a] as usize,
-                        lumped,
-                    );
+                if let (Some(lumped), Some(coupling)) = (lumped.as_mut(), coupling.as_mut()) {
+                    for cell in &cells {
+                        let cell_volume = tet_volume(&cell.vertices);
+                        if cell_volume <= 0.0 {
+                            continue;
+                        }
+                        // ∫ N_k and ∫ N_k² over the cell (standard shape functions).
+                        let (mut int_n, mut int_n2) = ([0.0; 10], [0.0; 10]);
+                        for q in mass_rule {
+                            let (bary, w) = map_point(&verts, &cell.vertices, q, cell_volume);
+                            shape_values(kind, &bary, &mut nvals);
+                            for k in 0..nn {
+                                int_n[k] += w * nvals[k];
+                                int_n2[k] += w * nvals[k] * nvals[k];
+                            }
+                        }
+                        let share = lump_cell_mass(kind, rho, cell_volume, &int_n, &int_n2);
+                        for k in 0..nn {
+                            lumped[shape_ids[first + k] as usize] += share[k];
+                        }
+                        for (j, &k) in enr_local.iter().enumerate() {
+                            let p = psi_of(cell, k);
+                            let enriched = shape_ids[first + nn + j] as usize;
+                            lumped[enriched] += p * p * share[k];
+                            coupling[enriched - n_nodes] += p * share[k];
+                        }
+                    }
                 }
                 mass_entries.push((first..first + m, me));
             }
@@ -487,6 +503,7 @@ impl Model {
             scatter,
             load,
             lumped_mass: lumped,
+            lumped_coupling: coupling,
             consistent_mass,
         })
     }
@@ -562,57 +579,39 @@ fn eval_shapes(
     }
 }
 
-/// Lumped mass of one element into `lumped` (per shape function).
+/// Lumped mass of one integration cell per node of its element.
 ///
-/// Standard DOFs: row sum for Tet4 (ρV/4 each); HRZ for Tet10 (the diagonal of
-/// the consistent mass scaled to the element mass), because the row sum gives
-/// zero vertex masses on Tet10. Enriched DOFs: seed eq. (82),
-/// M^aa_ii = Σ_cells (V_cell/V) ψ_i² M^uu_ii.
-#[allow(clippy::too_many_arguments)]
-fn lump_element_mass(
+/// Tet4: the row sum of the cell's consistent mass, ρ∫_cell N_k (positive).
+/// Tet10: HRZ, the cell mass ρV_cell shared in proportion to ∫_cell N_k²,
+/// because the row sum gives zero or negative vertex masses on Tet10.
+///
+/// Each cell's share goes to the DOF that moves that side, u_k + ψ a_k:
+/// M^uu += m, M^aa += ψ² m, M^ua += ψ m. Summed over the cells this is the
+/// seed's eq. (81)–(82) (with ∫N_k in place of the volume fractions) plus the
+/// coupling M^ua the seed drops; with it a part freed by the cut keeps exactly
+/// its own inertia and falls with g.
+fn lump_cell_mass(
     kind: ElementKind,
-    me: &[f64],
-    m: usize,
-    nn: usize,
-    enr_local: &[usize],
-    cells: &[Cell],
-    _verts: &[Point3<f64>; 4],
-    node_side: [i8; 10],
-    volume: f64,
     rho: f64,
-    global: impl Fn(usize) -> usize,
-    lumped: &mut [f64],
-) {
-    let total = rho * volume;
-    let mut muu = [0.0; 10];
+    cell_volume: f64,
+    int_n: &[f64; 10],
+    int_n2: &[f64; 10],
+) -> [f64; 10] {
+    let mut share = [0.0; 10];
     match kind {
         ElementKind::Tet4 => {
-            for v in muu.iter_mut().take(4) {
-                *v = total / 4.0;
+            for k in 0..4 {
+                share[k] = rho * int_n[k];
             }
         }
         ElementKind::Tet10 => {
-            let diag_sum: f64 = (0..nn).map(|a| me[a * m + a]).sum();
-            for (a, v) in muu.iter_mut().enumerate().take(nn) {
-                *v = total * me[a * m + a] / diag_sum;
+            let sum: f64 = int_n2.iter().sum();
+            for k in 0..10 {
+                share[k] = rho * cell_volume * int_n2[k] / sum;
             }
         }
     }
-    for (a, &v) in muu.iter().enumerate().take(nn) {
-        lumped[global(a)] += v;
-    }
-    for (j, &k) in enr_local.iter().enumerate() {
-        let mut factor = 0.0;
-        for cell in cells {
-            let p = if cell.side == 0 {
-                0.0
-            } else {
-                psi(cell.side, node_side[k])
-            };
-            factor += tet_volume(&cell.vertices) / volume * p * p;
-        }
-        lumped[global(nn + j)] += factor * muu[k];
-    }
+    share
 }
 
 /// Equation numbers of an element's local DOFs (3 per shape function).

@@ -124,6 +124,12 @@ pub fn solve_scene(
                     file: file.clone(),
                     source,
                 })?;
+            // Start at rest in the reference state with the acceleration of the loads (gravity).
+            nm.initialise_acceleration()
+                .map_err(|source| RunError::Dynamic {
+                    file: file.clone(),
+                    source,
+                })?;
             let mut frames = Vec::new();
             let mut energies = Vec::new();
             let mut iterations = Vec::with_capacity(options.steps);
@@ -167,7 +173,9 @@ pub fn solve_scene(
 }
 
 /// Displacement at reference point `x`: located in the mesh; in a cut element
-/// the side is the sign of the level set there (on the cut: the + side).
+/// the side is the sign of the level set there (on the cut: the + side). A
+/// point on a cut that runs along element faces is looked up in an element of
+/// that side.
 pub fn evaluate_at(
     model: &Model,
     locator: &Locator,
@@ -175,17 +183,35 @@ pub fn evaluate_at(
     x: &Point3<f64>,
 ) -> Option<Vector3<f64>> {
     let (e, bary) = locator.locate(&model.mesh, x)?;
-    let side = match &model.cut {
-        Some(c) => {
-            let v = model.mesh.vertices(e);
-            let phi: f64 = v.iter().zip(bary).map(|(&i, l)| c.phi[i] * l).sum();
-            if phi >= 0.0 {
-                1
-            } else {
-                -1
-            }
-        }
-        None => 0,
+    let Some(cut) = &model.cut else {
+        return Some(model.displacement_at(d, e, x, 0));
+    };
+    let level = |e: usize, bary: &[f64; 4]| -> f64 {
+        model
+            .mesh
+            .vertices(e)
+            .iter()
+            .zip(bary)
+            .map(|(&i, l)| cut.phi[i] * l)
+            .sum()
+    };
+    let side: i8 = if level(e, &bary) >= 0.0 { 1 } else { -1 };
+    // Whether element e's field is the one of `side` (a cut element holds both).
+    let serves = |e: usize| match &cut.elements[e] {
+        crate::cut::ElementCut::Cut { .. } => true,
+        crate::cut::ElementCut::Touched { side: s } => *s == side,
+        crate::cut::ElementCut::Uncut => model
+            .mesh
+            .vertices(e)
+            .iter()
+            .all(|&i| cut.phi[i] * f64::from(side) >= 0.0),
+    };
+    let e = if serves(e) {
+        e
+    } else {
+        locator
+            .locate_with(&model.mesh, x, serves)
+            .map_or(e, |(e, _)| e)
     };
     Some(model.displacement_at(d, e, x, side))
 }
