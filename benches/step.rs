@@ -1,3 +1,4 @@
+#![allow(clippy::needless_range_loop)]
 //! Criterion benches: precompute and one time step, linear and corotational, Tet4 and Tet10.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};

@@ -1,3 +1,4 @@
+#![allow(clippy::needless_range_loop)]
 use nalgebra::{Point3, Vector3};
 use std::time::Instant;
 use xfem_cut::assembly::{evaluate, Request, Rotations, Workspace};

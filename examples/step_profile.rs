@@ -1,3 +1,4 @@
+#![allow(clippy::needless_range_loop)]
 //! Profiles corotational Newmark steps on the seed beam (1k tets): `perf record` target.
 use nalgebra::{Point3, Vector3};
 use std::time::Instant;

@@ -9,6 +9,9 @@
 //! [`solve::Cholesky`] holds the symbolic factorisation; [`statics`] and
 //! [`dynamics`] borrow them and allocate nothing per step.
 
+// Index loops read like the formulas in numeric kernels.
+#![allow(clippy::needless_range_loop)]
+
 pub mod assembly;
 pub mod corotation;
 pub mod cut;

@@ -41,6 +41,9 @@ pub struct Prescribed {
     pub value: f64,
 }
 
+/// A body force per unit volume as a function of the reference position.
+pub type BodyForce = dyn Fn(&Point3<f64>) -> Vector3<f64> + Sync;
+
 /// Which integration points share a rotation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Formulation {
@@ -84,7 +87,7 @@ pub struct ModelInput<'a> {
     pub fixed: Vec<(usize, [Option<f64>; 3])>,
     pub gravity: Option<Vector3<f64>>,
     /// A body force per unit volume that varies in space (manufactured solutions), added to gravity.
-    pub body_force: Option<&'a (dyn Fn(&Point3<f64>) -> Vector3<f64> + Sync)>,
+    pub body_force: Option<&'a BodyForce>,
     pub tractions: &'a [Traction],
     /// Whether to build the lumped mass (dynamic scenes only).
     pub need_mass: bool,
@@ -299,9 +302,7 @@ impl Model {
                     // For Tet4 all points of a side have the same gradients: store them once.
                     let gstart = groups[g].grads as usize;
                     if kind == ElementKind::Tet10 || groups[g].weight == 0.0 {
-                        for k in 0..nn {
-                            grads[gstart + k] = ngrads[k];
-                        }
+                        grads[gstart..gstart + nn].copy_from_slice(&ngrads[..nn]);
                         for (j, &k) in enr_local.iter().enumerate() {
                             grads[gstart + nn + j] = ngrads[k] * psi_of(cell, k);
                         }

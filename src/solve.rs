@@ -160,6 +160,81 @@ impl Cholesky {
     }
 }
 
+/// Buffers of the preconditioned conjugate gradient (allocated once).
+pub struct Pcg {
+    r: Vec<f64>,
+    z: Vec<f64>,
+    p: Vec<f64>,
+    q: Vec<f64>,
+    /// Total CG iterations done (a work counter).
+    pub iterations: usize,
+}
+
+impl Pcg {
+    pub fn new(n: usize) -> Pcg {
+        Pcg {
+            r: vec![0.0; n],
+            z: vec![0.0; n],
+            p: vec![0.0; n],
+            q: vec![0.0; n],
+            iterations: 0,
+        }
+    }
+
+    /// Solves A x = b (A: lower-triangle `values` on `pattern`), preconditioned by
+    /// the factorisation in `precond` (of a nearby matrix: a stale tangent).
+    /// `x` is overwritten, starting from zero. Returns whether ‖r‖ ≤ tol ‖b‖ was reached within `max_iterations`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn solve(
+        &mut self,
+        pattern: &Pattern,
+        values: &[f64],
+        precond: &mut Cholesky,
+        b: &[f64],
+        x: &mut [f64],
+        tol: f64,
+        max_iterations: usize,
+    ) -> bool {
+        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+        let b_norm = dot(b, b).sqrt();
+        x.fill(0.0);
+        if b_norm == 0.0 {
+            return true;
+        }
+        self.r.copy_from_slice(b);
+        self.z.copy_from_slice(b);
+        precond.solve_in_place(&mut self.z);
+        self.p.copy_from_slice(&self.z);
+        let mut rz = dot(&self.r, &self.z);
+        for _ in 0..max_iterations {
+            self.iterations += 1;
+            self.q.fill(0.0);
+            pattern.sym_mul_add(values, &self.p, &mut self.q);
+            let pq = dot(&self.p, &self.q);
+            if pq <= 0.0 || !pq.is_finite() {
+                return false;
+            }
+            let alpha = rz / pq;
+            for i in 0..x.len() {
+                x[i] += alpha * self.p[i];
+                self.r[i] -= alpha * self.q[i];
+            }
+            if dot(&self.r, &self.r).sqrt() <= tol * b_norm {
+                return true;
+            }
+            self.z.copy_from_slice(&self.r);
+            precond.solve_in_place(&mut self.z);
+            let rz_new = dot(&self.r, &self.z);
+            let beta = rz_new / rz;
+            rz = rz_new;
+            for i in 0..x.len() {
+                self.p[i] = self.z[i] + beta * self.p[i];
+            }
+        }
+        false
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -213,79 +288,5 @@ mod tests {
             chol.factorize(&v),
             Err(SolveError::NotPositiveDefinite)
         ));
-    }
-}
-
-/// Buffers of the preconditioned conjugate gradient (allocated once).
-pub struct Pcg {
-    r: Vec<f64>,
-    z: Vec<f64>,
-    p: Vec<f64>,
-    q: Vec<f64>,
-    /// Total CG iterations done (a work counter).
-    pub iterations: usize,
-}
-
-impl Pcg {
-    pub fn new(n: usize) -> Pcg {
-        Pcg {
-            r: vec![0.0; n],
-            z: vec![0.0; n],
-            p: vec![0.0; n],
-            q: vec![0.0; n],
-            iterations: 0,
-        }
-    }
-
-    /// Solves A x = b (A: lower-triangle `values` on `pattern`), preconditioned by
-    /// the factorisation in `precond` (of a nearby matrix: a stale tangent).
-    /// `x` is overwritten, starting from zero. Returns whether ‖r‖ ≤ tol ‖b‖ was reached within `max_iterations`.
-    pub fn solve(
-        &mut self,
-        pattern: &Pattern,
-        values: &[f64],
-        precond: &mut Cholesky,
-        b: &[f64],
-        x: &mut [f64],
-        tol: f64,
-        max_iterations: usize,
-    ) -> bool {
-        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
-        let b_norm = dot(b, b).sqrt();
-        x.fill(0.0);
-        if b_norm == 0.0 {
-            return true;
-        }
-        self.r.copy_from_slice(b);
-        self.z.copy_from_slice(b);
-        precond.solve_in_place(&mut self.z);
-        self.p.copy_from_slice(&self.z);
-        let mut rz = dot(&self.r, &self.z);
-        for _ in 0..max_iterations {
-            self.iterations += 1;
-            self.q.fill(0.0);
-            pattern.sym_mul_add(values, &self.p, &mut self.q);
-            let pq = dot(&self.p, &self.q);
-            if pq <= 0.0 || !pq.is_finite() {
-                return false;
-            }
-            let alpha = rz / pq;
-            for i in 0..x.len() {
-                x[i] += alpha * self.p[i];
-                self.r[i] -= alpha * self.q[i];
-            }
-            if dot(&self.r, &self.r).sqrt() <= tol * b_norm {
-                return true;
-            }
-            self.z.copy_from_slice(&self.r);
-            precond.solve_in_place(&mut self.z);
-            let rz_new = dot(&self.r, &self.z);
-            let beta = rz_new / rz;
-            rz = rz_new;
-            for i in 0..x.len() {
-                self.p[i] = self.z[i] + beta * self.p[i];
-            }
-        }
-        false
     }
 }

@@ -1,3 +1,4 @@
+#![allow(clippy::needless_range_loop)]
 //! The command line: outputs of a run, and one-line errors on bad input.
 
 use std::path::{Path, PathBuf};

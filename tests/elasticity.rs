@@ -1,3 +1,4 @@
+#![allow(clippy::needless_range_loop)]
 //! Analytical checks of the elasticity core: patch tests, rigid motions,
 //! manufactured solutions, the cantilever, Newmark energy and frequency.
 

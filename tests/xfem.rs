@@ -1,3 +1,4 @@
+#![allow(clippy::needless_range_loop)]
 //! X-FEM cuts end to end: separation, free fall, patch tests through cut
 //! elements, cuts near nodes.
 
