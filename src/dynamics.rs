@@ -360,6 +360,8 @@ impl<'m> Newmark<'m> {
             for i in 0..d.len() {
                 self.r_full[i] = model.load[i] - self.f_int[i] - ma[i];
             }
+            // Force scale of the residual: loads, internal and inertial forces.
+            let scale = norm(&model.load).max(norm(&self.f_int)).max(norm(&ma));
             if o.rayleigh_mass != 0.0 {
                 self.mass_product(&self.v_new, &mut ma);
                 for i in 0..d.len() {
@@ -381,10 +383,8 @@ impl<'m> Newmark<'m> {
                 }
             }
             gather_free(model, &self.r_full, &mut self.r_free);
-            let scale = norm(&model.load)
-                .max(norm(&self.f_int))
-                .max(f64::MIN_POSITIVE);
-            let residual = norm(&self.r_free) / scale;
+            let r_norm = norm(&self.r_free);
+            let residual = if r_norm == 0.0 { 0.0 } else { r_norm / scale };
             report.residual = residual;
             if !residual.is_finite() {
                 return Err(DynamicError::NotFinite(step_no));

@@ -44,6 +44,17 @@ pub struct Prescribed {
 /// A body force per unit volume as a function of the reference position.
 pub type BodyForce = dyn Fn(&Point3<f64>) -> Vector3<f64> + Sync;
 
+/// How a Tet4 element's integration points are grouped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Integration {
+    /// One group per side: the strain is constant there, so the side's volume
+    /// is its weight (the volume ratios of seed eq. 60–63). The default.
+    Grouped,
+    /// One group per quadrature point of every sub-tet (seed eq. 51), as Tet10
+    /// always does; for Tet4 it gives the same matrices, only slower.
+    SubTetQuadrature,
+}
+
 /// Which integration points share a rotation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Formulation {
@@ -160,6 +171,14 @@ impl Model {
 
     /// Builds the model: element data, enrichment, DOF numbering, pattern, loads, mass.
     pub fn build(input: ModelInput<'_>) -> Result<Model, ModelError> {
+        Model::build_with(input, Integration::Grouped)
+    }
+
+    /// As [`Model::build`], choosing how Tet4 elements are integrated.
+    pub fn build_with(
+        input: ModelInput<'_>,
+        integration: Integration,
+    ) -> Result<Model, ModelError> {
         let ModelInput {
             mesh,
             material,
@@ -184,9 +203,9 @@ impl Model {
         let lame = Lame::from(material);
         let rho = material.density;
         let nn = kind.nodes();
-        let stiffness_rule = quadrature::rule(match kind {
-            ElementKind::Tet4 => 1,
-            ElementKind::Tet10 => 2,
+        let stiffness_rule = quadrature::rule(match (kind, integration) {
+            (ElementKind::Tet4, Integration::Grouped) => 1,
+            _ => 2,
         });
         // Gravity is constant (degree = shape degree); a varying body force gets degree 5.
         let load_rule = if body_force.is_some() {
@@ -283,8 +302,9 @@ impl Model {
                 for q in stiffness_rule {
                     let (bary, w) = map_point(&verts, &cell.vertices, q, cell_volume);
                     shape_gradients(kind, &bary, &dl, &mut ngrads);
-                    let g = match (kind, side_group[(cell.side + 1) as usize]) {
-                        (ElementKind::Tet4, Some(g)) => g,
+                    let grouped = kind == ElementKind::Tet4 && integration == Integration::Grouped;
+                    let g = match (grouped, side_group[(cell.side + 1) as usize]) {
+                        (true, Some(g)) => g,
                         _ => {
                             let g = groups.len();
                             groups.push(Group {
@@ -293,7 +313,7 @@ impl Model {
                             });
                             group_element.push(e as u32);
                             grads.extend(std::iter::repeat_n(Vector3::zeros(), m));
-                            if kind == ElementKind::Tet4 {
+                            if grouped {
                                 side_group[(cell.side + 1) as usize] = Some(g);
                             }
                             g
@@ -301,7 +321,7 @@ impl Model {
                     };
                     // For Tet4 all points of a side have the same gradients: store them once.
                     let gstart = groups[g].grads as usize;
-                    if kind == ElementKind::Tet10 || groups[g].weight == 0.0 {
+                    if !grouped || groups[g].weight == 0.0 {
                         grads[gstart..gstart + nn].copy_from_slice(&ngrads[..nn]);
                         for (j, &k) in enr_local.iter().enumerate() {
                             grads[gstart + nn + j] = ngrads[k] * psi_of(cell, k);

@@ -101,8 +101,9 @@ pub fn solve_static(
                 .map(|(l, f)| lambda * l - f)
                 .collect();
             gather_free(model, &r_full, &mut r_free);
-            let scale = norm(&model.load).max(norm(&f_int)).max(f64::MIN_POSITIVE);
-            residual = norm(&r_free) / scale;
+            let scale = norm(&model.load).max(norm(&f_int));
+            let r_norm = norm(&r_free);
+            residual = if r_norm == 0.0 { 0.0 } else { r_norm / scale };
             if !residual.is_finite() {
                 return Err(StaticError::NotFinite);
             }
