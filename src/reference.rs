@@ -1,1 +1,122 @@
-//! Reading the references written by `refs/` (see `refs/README.md`).
+//! The references written by `refs/` (layout in `refs/README.md`): meshes in
+//! `refs/out/meshes/<family>/L<k>.msh`, solutions in
+//! `refs/out/<case>/<family>_L<k>/{p1,p2,corot_p1,corot_p2}.vtu` on the same
+//! node numbering (P2: the mesh vertices first, then one mid-node per edge).
+
+use crate::io::{read_vtu, IoError};
+use crate::mesh::{ElementKind, TetMesh, TET10_EDGES};
+use nalgebra::{Point3, Vector3};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+/// The folder `refs/out` of this checkout.
+pub fn out_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("refs/out")
+}
+
+/// A reference solution: its mesh (Tet4 or Tet10) and nodal displacements.
+pub struct Reference {
+    pub mesh: TetMesh,
+    pub u: Vec<Vector3<f64>>,
+}
+
+/// Reads a reference VTU (10: tetra, 24: quadratic tetra; point data `u`).
+pub fn read_reference(path: &Path) -> Result<Reference, IoError> {
+    let d = read_vtu(path)?;
+    let kind = match d.types.first() {
+        Some(10) => ElementKind::Tet4,
+        Some(24) => ElementKind::Tet10,
+        other => {
+            return Err(IoError::new(
+                path,
+                format!("cell type {other:?} is not a tetrahedron"),
+            ))
+        }
+    };
+    if d.types.iter().any(|&t| Some(&t) != d.types.first()) {
+        return Err(IoError::new(path, "mixed cell types"));
+    }
+    let (comps, u) = d
+        .point_data
+        .get("u")
+        .ok_or_else(|| IoError::new(path, "no point data `u`"))?;
+    if *comps != 3 {
+        return Err(IoError::new(path, "point data `u` must have 3 components"));
+    }
+    let nodes = d
+        .points
+        .chunks(3)
+        .map(|p| Point3::new(p[0], p[1], p[2]))
+        .collect();
+    let u = u
+        .chunks(3)
+        .map(|p| Vector3::new(p[0], p[1], p[2]))
+        .collect();
+    let mut mesh = TetMesh {
+        kind,
+        nodes,
+        cells: d.connectivity,
+    };
+    mesh.orient_positively();
+    Ok(Reference { mesh, u })
+}
+
+/// Relative difference ‖u_ours − u_ref‖ / ‖u_ref‖ over the nodes of the same
+/// mesh: `ours` is our mesh (read from the same `.msh`, Tet4 or Tet10 made
+/// from it) with nodal displacements `d` (first 3 × n_nodes entries). Nodes
+/// are matched through topology — vertices by index, mid-nodes by the vertex
+/// pair of their edge — never by coordinates (crack nodes coincide).
+pub fn same_mesh_difference(
+    ours: &TetMesh,
+    d: &[f64],
+    reference: &Reference,
+) -> Result<f64, String> {
+    if ours.kind != reference.mesh.kind || ours.n_elements() != reference.mesh.n_elements() {
+        return Err(format!(
+            "meshes differ: ours {} {}, reference {} {}",
+            ours.n_elements(),
+            ours.kind.name(),
+            reference.mesh.n_elements(),
+            reference.mesh.kind.name()
+        ));
+    }
+    let edge_key = |m: &TetMesh, e: usize, k: usize| {
+        let v = m.vertices(e);
+        let (a, b) = TET10_EDGES[k];
+        (v[a].min(v[b]), v[a].max(v[b]))
+    };
+    // Our node index → reference node index.
+    let mut map: HashMap<usize, usize> = HashMap::new();
+    for e in 0..ours.n_elements() {
+        let (oc, rc) = (ours.element(e), reference.mesh.element(e));
+        let mut ov = oc[..4].to_vec();
+        let mut rv = rc[..4].to_vec();
+        ov.sort_unstable();
+        rv.sort_unstable();
+        if ov != rv {
+            return Err(format!("element {e} has other vertices in the reference"));
+        }
+        for &i in &oc[..4] {
+            map.insert(i, i);
+        }
+        if ours.kind == ElementKind::Tet10 {
+            let ref_edges: HashMap<(usize, usize), usize> = (0..6)
+                .map(|k| (edge_key(&reference.mesh, e, k), rc[4 + k]))
+                .collect();
+            for k in 0..6 {
+                let key = edge_key(ours, e, k);
+                let r = *ref_edges.get(&key).ok_or(format!(
+                    "edge {key:?} of element {e} missing in the reference"
+                ))?;
+                map.insert(oc[4 + k], r);
+            }
+        }
+    }
+    let (mut diff, mut norm) = (0.0, 0.0);
+    for (&i, &r) in &map {
+        let mine = Vector3::new(d[3 * i], d[3 * i + 1], d[3 * i + 2]);
+        diff += (mine - reference.u[r]).norm_squared();
+        norm += reference.u[r].norm_squared();
+    }
+    Ok((diff / norm).sqrt())
+}

@@ -78,12 +78,14 @@ pub fn read_msh(path: &Path) -> Result<MshMesh, IoError> {
             ElementType::Tet4 => (ElementKind::Tet4, &[0, 1, 2, 3]),
             ElementType::Tet10 => (ElementKind::Tet10, &GMSH_TET10),
             _ if block.entity_dim < 3 => continue,
-            other => return Err(IoError::new(
-                path,
-                format!(
+            other => {
+                return Err(IoError::new(
+                    path,
+                    format!(
                     "unsupported volume element type {other:?} (only 4- and 10-node tetrahedra)"
                 ),
-            )),
+                ))
+            }
         };
         if kind.is_some_and(|kk| kk != k) {
             return Err(IoError::new(path, "mixes 4- and 10-node tetrahedra"));

@@ -1,0 +1,113 @@
+#!/usr/bin/python3
+"""Builds every reference the cases need, skipping those whose inputs are unchanged.
+
+Meshes: refs/out/meshes/<family>/L<k>.msh. Solutions: refs/out/<case>/<family>_L<k>/p{1,2}.vtu
+(+ .json with DOFs, times, residual). Each output has a .hash file with the hash of its inputs
+(scripts, case file, mesh, tool versions, ranks); an output whose hash matches is skipped.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from common import CASES, OUT, ROOT, file_hash, write_json
+
+PY = "/usr/bin/python3"
+# Mesh size per level (m); the last level is the fine reference (P2).
+LEVELS = [0.012, 0.008, 0.006, 0.0045, 0.0035]
+FINE = 0.0028
+FAMILY = {"gravity": "beam_crack", "stretch": "beam_crack", "bend": "beam_crack", "stretch_face": "beam_crack",
+          "bend_face": "beam_crack", "slice": "slice_precut"}
+SETS = {
+    "test": {"levels": [0, 1], "fine": False},
+    "all": {"levels": list(range(len(LEVELS))), "fine": True},
+}
+
+
+def tool_versions() -> str:
+    code = ("import gmsh, dolfinx, meshio; gmsh.initialize(); "
+            "print('gmsh', gmsh.option.getString('General.Version'), 'dolfinx', dolfinx.__version__, 'meshio', meshio.__version__); "
+            "gmsh.finalize()")
+    return subprocess.run([PY, "-c", code], capture_output=True, text=True).stdout.strip()
+
+
+def up_to_date(target: Path, h: str) -> bool:
+    hf = target.with_name(target.name + ".hash")
+    return target.exists() and hf.exists() and hf.read_text() == h
+
+
+def mark(target: Path, h: str) -> None:
+    target.with_name(target.name + ".hash").write_text(h)
+
+
+def run(cmd: list[str], what: str) -> None:
+    t0 = time.perf_counter()
+    p = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+    if p.returncode != 0:
+        sys.stderr.write(p.stdout[-3000:] + p.stderr[-3000:])
+        sys.exit(f"error: {what} failed (exit {p.returncode})")
+    print(f"  done  {what} ({time.perf_counter() - t0:.1f} s)", flush=True)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--set", choices=SETS, default="all")
+    ap.add_argument("--np", type=int, default=1, help="MPI ranks for the FEniCSx solves")
+    ap.add_argument("--cases", nargs="*", default=list(FAMILY))
+    a = ap.parse_args()
+    chosen = SETS[a.set]
+    versions = tool_versions()
+    mesh_jobs = []
+    for family in ["beam_crack", "beam_uncut", "slice_precut"]:
+        for k in chosen["levels"]:
+            mesh_jobs.append((family, f"L{k}", LEVELS[k]))
+        if chosen["fine"] and family != "beam_uncut":
+            mesh_jobs.append((family, "fine", FINE))
+    print(f"refs: {len(mesh_jobs)} meshes, set '{a.set}', {a.np} rank(s), tools {versions}", flush=True)
+    mesh_hash = {}
+    for family, name, h in mesh_jobs:
+        target = OUT / "meshes" / family / f"{name}.msh"
+        hh = file_hash(ROOT / "mesh.py", extra=f"{family} {h} {versions}")
+        mesh_hash[(family, name)] = hh
+        if up_to_date(target, hh):
+            print(f"  skip  mesh {family}/{name} (up to date)", flush=True)
+            continue
+        run([PY, "mesh.py", family, str(h), str(target)], f"mesh {family}/{name} h={h}")
+        mark(target, hh)
+
+    for case in a.cases:
+        family = FAMILY[case]
+        names = [f"L{k}" for k in chosen["levels"]] + (["fine"] if chosen["fine"] else [])
+        manifest_path = OUT / case / "manifest.json"
+        manifest = json.loads(manifest_path.read_text()) if manifest_path.exists() else {}
+        for name in names:
+            msh = OUT / "meshes" / family / f"{name}.msh"
+            for degree in ([2] if name == "fine" else [1, 2]):
+                target = OUT / case / f"{family}_{name}" / f"p{degree}.vtu"
+                hh = file_hash(ROOT / "solve_fenicsx.py", ROOT / "common.py", CASES / f"{case}.toml",
+                               extra=f"{mesh_hash[(family, name)]} {degree} {versions} np={a.np}")
+                key = f"{family}_{name}/p{degree}"
+                if up_to_date(target, hh):
+                    print(f"  skip  {case} {key} (up to date)", flush=True)
+                    continue
+                target.parent.mkdir(parents=True, exist_ok=True)
+                cmd = [PY, "solve_fenicsx.py", case, str(msh), str(degree), str(target)]
+                if a.np > 1:
+                    cmd = ["mpirun", "--allow-run-as-root", "--oversubscribe", "-n", str(a.np)] + cmd
+                run(cmd, f"FEniCSx {case} {key}")
+                info = json.loads(target.with_suffix(".json").read_text())
+                info["inputs_hash"] = hh
+                info["tools"] = versions
+                manifest[key] = info
+                write_json(manifest_path, manifest)
+                mark(target, hh)
+    print("refs: done", flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,156 @@
+#!/usr/bin/python3
+"""Mesh the seed's beam with gmsh: with the crack built in, uncut, and cut through (slice).
+
+The crack (x in [0, 0.015], y in [0, 0.06], z = 0.1) is embedded in the mesh and its nodes are
+then duplicated for the tetrahedra above it (the front line x = 0.015 is not duplicated); the
+slice plane z = 0.09 + 2x/3 is embedded and all its nodes are duplicated, so the two pieces
+share no node. Planes x = 0.005 and x = 0.025 are embedded too, so the top-face strips of the
+`*_face` cases are resolved exactly. Writes gmsh MSH 4.1 ASCII (tets only, tags 1..N).
+"""
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+import gmsh
+import meshio
+import numpy as np
+
+BOX = (0.03, 0.06, 0.2)
+CRACK_Z, FRONT_X = 0.1, 0.015
+SLICE_ORIGIN = np.array([0.0, 0.0, 0.09])
+SLICE_NORMAL = np.array([-0.02, 0.0, 0.03]) / math.hypot(0.02, 0.03)
+
+
+def build_geometry(family: str) -> None:
+    occ = gmsh.model.occ
+    lx, ly, lz = BOX
+    if family == "slice_precut":
+        vols = [occ.addBox(0, 0, 0, lx, ly, lz)]
+    else:
+        # Three slabs so that the planes x = 0.005 and x = 0.025 are mesh faces.
+        xs = [0.0, 0.005, 0.025, lx]
+        vols = [occ.addBox(xs[i], 0, 0, xs[i + 1] - xs[i], ly, lz) for i in range(3)]
+    tools = []
+    if family == "beam_crack":
+        tools.append((2, occ.addRectangle(0, 0, CRACK_Z, FRONT_X, ly)))
+    if family == "slice_precut":
+        r = occ.addRectangle(-0.05, -0.01, 0, 0.15, ly + 0.02)
+        occ.rotate([(2, r)], 0, 0, 0, 0, 1, 0, -math.atan2(2.0, 3.0))
+        occ.translate([(2, r)], *SLICE_ORIGIN)
+        tools.append((2, r))
+    occ.fragment([(3, v) for v in vols], tools)
+    occ.synchronize()
+
+
+def generate(family: str, h: float) -> tuple[np.ndarray, np.ndarray]:
+    gmsh.initialize()
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.option.setNumber("General.NumThreads", 1)
+        gmsh.option.setNumber("Mesh.RandomSeed", 1)
+        gmsh.model.add(family)
+        build_geometry(family)
+        gmsh.option.setNumber("Mesh.MeshSizeMax", h)
+        gmsh.option.setNumber("Mesh.MeshSizeMin", 0.2 * h)
+        gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
+        gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+        gmsh.option.setNumber("Mesh.Algorithm3D", 1)
+        gmsh.model.mesh.generate(3)
+        tags, coords, _ = gmsh.model.mesh.getNodes()
+        points = coords.reshape(-1, 3)
+        index = {int(t): i for i, t in enumerate(tags)}
+        _, tet_nodes = gmsh.model.mesh.getElementsByType(4)
+        tets = np.array([index[int(t)] for t in tet_nodes], dtype=np.int64).reshape(-1, 4)
+    finally:
+        gmsh.finalize()
+    # Keep only the nodes used by tets, in order of first use (deterministic given the mesh).
+    used = np.unique(tets)
+    remap = -np.ones(len(points), dtype=np.int64)
+    remap[used] = np.arange(len(used))
+    return points[used], remap[tets]
+
+
+def duplicate(points: np.ndarray, tets: np.ndarray, on_cut: np.ndarray, above: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Gives the tets above the cut their own copy of every node on it."""
+    new_index = -np.ones(len(points), dtype=np.int64)
+    cut_nodes = np.flatnonzero(on_cut)
+    new_index[cut_nodes] = len(points) + np.arange(len(cut_nodes))
+    tets = tets.copy()
+    for e in np.flatnonzero(above):
+        for k in range(4):
+            n = tets[e, k]
+            if new_index[n] >= 0:
+                tets[e, k] = new_index[n]
+    return np.vstack([points, points[cut_nodes]]), tets
+
+
+def make(family: str, h: float) -> tuple[np.ndarray, np.ndarray, int]:
+    points, tets = generate(family, h)
+    centroid = points[tets].mean(axis=1)
+    tol = 1e-9
+    if family == "beam_crack":
+        on_cut = (np.abs(points[:, 2] - CRACK_Z) < tol) & (points[:, 0] < FRONT_X - tol)
+        above = centroid[:, 2] > CRACK_Z
+    elif family == "slice_precut":
+        phi = (points - SLICE_ORIGIN) @ SLICE_NORMAL
+        on_cut = np.abs(phi) < tol
+        above = (centroid - SLICE_ORIGIN) @ SLICE_NORMAL > 0
+    else:
+        return points, tets, 0
+    points, tets = duplicate(points, tets, on_cut, above)
+    return points, tets, int(on_cut.sum())
+
+
+def check(family: str, points: np.ndarray, tets: np.ndarray, n_dup: int) -> None:
+    """The crack is open: no tet spans it, duplicated nodes are coincident and used only on one side."""
+    p = points[tets]
+    vol = np.einsum("ij,ij->i", np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), p[:, 3] - p[:, 0]) / 6
+    assert np.all(np.abs(vol) > 0), "degenerate tet"
+    assert abs(np.abs(vol).sum() - np.prod(BOX)) < 1e-12, "volumes do not add up to the box"
+    if family == "beam_crack":
+        inside = p[:, :, 0].max(axis=1) <= FRONT_X + 1e-9
+        spans = inside & (p[:, :, 2].min(axis=1) < CRACK_Z - 1e-9) & (p[:, :, 2].max(axis=1) > CRACK_Z + 1e-9)
+        assert not spans.any(), "a tet spans the crack"
+        n = len(points) - n_dup
+        dup = points[n:]
+        assert np.all(np.abs(dup[:, 2] - CRACK_Z) < 1e-9) and np.all(dup[:, 0] < FRONT_X)
+        # Front nodes (x = 0.015, z = 0.1) exist and are not duplicated.
+        front = (np.abs(points[:n, 0] - FRONT_X) < 1e-9) & (np.abs(points[:n, 2] - CRACK_Z) < 1e-9)
+        assert front.sum() >= 2, "no node on the front line"
+        # Originals are used only below, copies only above.
+        below_users = np.isin(tets, np.arange(n - n_dup, n))
+        del below_users
+    if family == "slice_precut":
+        phi = (p - SLICE_ORIGIN) @ SLICE_NORMAL
+        assert not ((phi.min(axis=1) < -1e-9) & (phi.max(axis=1) > 1e-9)).any(), "a tet spans the slice"
+    if n_dup:
+        # The two sides share no node on the cut.
+        n = len(points) - n_dup
+        users_orig = set(np.unique(tets[np.isin(tets, np.arange(n))]))
+        users_copy = set(np.unique(tets[tets >= n]))
+        assert len(users_copy) == n_dup and not (users_copy & users_orig)
+
+
+def write_msh(path: Path, points: np.ndarray, tets: np.ndarray) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp.msh")
+    meshio.write(tmp, meshio.Mesh(points, [("tetra", tets)]), file_format="gmsh", binary=False)
+    tmp.replace(path)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("family", choices=["beam_crack", "beam_uncut", "slice_precut"])
+    ap.add_argument("h", type=float, help="mesh size (m)")
+    ap.add_argument("out", type=Path)
+    a = ap.parse_args()
+    points, tets, n_dup = make(a.family, a.h)
+    check(a.family, points, tets, n_dup)
+    write_msh(a.out, points, tets)
+    print(f"{a.out}: {len(points)} nodes ({n_dup} duplicated), {len(tets)} tets")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,21 @@
+# The reference pipeline (included by the top-level Makefile).
+REFS_PY := /usr/bin/python3
+REFS_DEBS := python3-dolfinx python3-gmsh python3-meshio python3-scipy libopenblas0-pthread python3-venv openmpi-bin
+
+.PHONY: refs-env refs refs-test
+
+# Debian's FEniCSx, gmsh and meshio (with OpenBLAS for a fair MUMPS), installed when missing.
+refs-env:
+	@if ! $(REFS_PY) -c "import dolfinx, gmsh, meshio, scipy" 2>/dev/null || ! dpkg -s libopenblas0-pthread >/dev/null 2>&1; then \
+	  echo "refs: installing $(REFS_DEBS)"; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(REFS_DEBS) >/dev/null; \
+	fi
+	@$(REFS_PY) -c "import dolfinx, gmsh, meshio; print('refs: dolfinx', dolfinx.__version__)"
+
+# Every level and the fine reference (make refs NP=4 runs the solves under mpirun).
+refs: refs-env
+	cd refs && $(REFS_PY) make_refs.py --set all --np $(NP)
+
+# The coarse levels the tests need.
+refs-test: refs-env
+	cd refs && $(REFS_PY) make_refs.py --set test --np $(NP)

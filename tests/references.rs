@@ -1,0 +1,62 @@
+//! Equality with FEniCSx on the same pre-cut gmsh meshes (`make refs-test` builds them):
+//! our Tet4 = FEniCSx P1 and our Tet10 = FEniCSx P2 to 1e-10 relative, for every beam case.
+
+use std::path::Path;
+use xfem_cut::mesh::ElementKind;
+use xfem_cut::reference::{out_dir, read_reference, same_mesh_difference};
+use xfem_cut::run::solve_scene;
+use xfem_cut::scene::Scene;
+
+const CASES: [(&str, &str); 6] = [
+    ("gravity", "beam_crack"),
+    ("stretch", "beam_crack"),
+    ("bend", "beam_crack"),
+    ("stretch_face", "beam_crack"),
+    ("bend_face", "beam_crack"),
+    ("slice", "slice_precut"),
+];
+
+fn need(path: &Path) {
+    assert!(
+        path.exists(),
+        "{} is missing: run `make refs-test` (or `make test`, which runs it)",
+        path.display()
+    );
+}
+
+#[test]
+fn linear_solves_on_precut_meshes_equal_fenicsx() {
+    let cases_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
+    let mut worst: f64 = 0.0;
+    for (case, family) in CASES {
+        for level in ["L0", "L1"] {
+            let msh = out_dir().join(format!("meshes/{family}/{level}.msh"));
+            need(&msh);
+            for (element, file) in [
+                (ElementKind::Tet4, "p1.vtu"),
+                (ElementKind::Tet10, "p2.vtu"),
+            ] {
+                let vtu = out_dir().join(format!("{case}/{family}_{level}/{file}"));
+                need(&vtu);
+                let mut scene = Scene::load(&cases_dir.join(format!("{case}.toml"))).unwrap();
+                // The crack is in the mesh: solve it as plain FEM.
+                scene.cuts.clear();
+                scene.element = element;
+                let ours = solve_scene(&scene, 0, Some(&msh), false).unwrap();
+                let reference = read_reference(&vtu).unwrap();
+                let diff = same_mesh_difference(&ours.model.mesh, &ours.d, &reference).unwrap();
+                println!(
+                    "{case} {level} {}: relative difference {diff:.2e}",
+                    element.name()
+                );
+                assert!(
+                    diff <= 1e-10,
+                    "{case} {level} {}: differs from FEniCSx by {diff:e}",
+                    element.name()
+                );
+                worst = worst.max(diff);
+            }
+        }
+    }
+    println!("largest relative difference to FEniCSx: {worst:.2e}");
+}
