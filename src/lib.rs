@@ -13,6 +13,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod assembly;
+pub mod converge;
 pub mod corotation;
 pub mod cut;
 pub mod dynamics;
@@ -25,6 +26,7 @@ pub mod model;
 pub mod output;
 pub mod quadrature;
 pub mod reference;
+pub mod report;
 pub mod run;
 pub mod scene;
 pub mod solve;

@@ -34,6 +34,25 @@ enum Command {
         #[arg(long)]
         mesh: Option<PathBuf>,
     },
+    /// Convergence study: every variant (FEM on pre-cut meshes, X-FEM on structured and
+    /// unstructured meshes; Tet4, Tet10) at every level, L2 error against the fine FEniCSx
+    /// reference (`make refs`). Rows of these cases replace theirs in the CSV.
+    Converge {
+        /// Case files (each needs refs/out/<name>/*_fine/p2.vtu).
+        cases: Vec<PathBuf>,
+        #[arg(long, default_value = "reports/data/convergence.csv")]
+        csv: PathBuf,
+        /// Skip runs with more DOFs than this.
+        #[arg(long, default_value_t = 250_000)]
+        max_dofs: usize,
+    },
+    /// (Re)write reports/README.md and its plots from the CSVs, the FEniCSx manifests and criterion's estimates.
+    Report {
+        #[arg(long, default_value = "reports")]
+        dir: PathBuf,
+        #[arg(long, default_value = "target/criterion")]
+        criterion: PathBuf,
+    },
 }
 
 fn main() {
@@ -91,6 +110,48 @@ fn run() -> Result<()> {
                 xfem_cut::output::write_probes(&path, &scene.probes, &values)?;
                 println!("wrote {}", path.display());
             }
+            Ok(())
+        }
+        Command::Converge {
+            cases,
+            csv,
+            max_dofs,
+        } => {
+            let mut rows = if csv.exists() {
+                xfem_cut::converge::read_csv(&csv)?
+            } else {
+                Vec::new()
+            };
+            let bar = indicatif::ProgressBar::new_spinner();
+            bar.enable_steady_tick(std::time::Duration::from_millis(200));
+            for case in &cases {
+                let name = Scene::load(case)?.name;
+                bar.set_message(format!("{name}: running"));
+                let new = xfem_cut::converge::converge_case(case, max_dofs, |msg| bar.println(msg))
+                    .map_err(anyhow::Error::msg)?;
+                rows.retain(|r| r.case != name);
+                rows.extend(new);
+                xfem_cut::converge::write_csv(&csv, &rows)?;
+            }
+            bar.finish_and_clear();
+            println!("wrote {}", csv.display());
+            Ok(())
+        }
+        Command::Report { dir, criterion } => {
+            let machine = format!(
+                "{} cores, {}; commit {}",
+                std::thread::available_parallelism().map_or(0, |n| n.get()),
+                std::env::consts::ARCH,
+                std::process::Command::new("git")
+                    .args(["rev-parse", "--short", "HEAD"])
+                    .output()
+                    .ok()
+                    .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
+                    .unwrap_or_default()
+            );
+            xfem_cut::report::write_report(&dir, &criterion, &machine)
+                .map_err(anyhow::Error::msg)?;
+            println!("wrote {}", dir.join("README.md").display());
             Ok(())
         }
     }
