@@ -1,99 +1,195 @@
-//! gmsh MSH 4.1 (ASCII or binary) through the `mshio` crate.
+//! gmsh MSH 4.1 meshes (ASCII or binary) through the `mshio` crate, plus the
+//! `$PhysicalNames` section, which `mshio` skips.
+//!
+//! Only 3-D 4- and 10-node tetrahedra become elements; points, lines and
+//! triangles (boundary and physical-group elements) are skipped, and any
+//! other volume element is an error rather than a silent hole in the body.
 
-use super::IoError;
+use super::{read_bytes, IoError};
 use crate::mesh::{ElementKind, TetMesh};
 use mshio::mshfile::ElementType;
 use nalgebra::Point3;
 use std::collections::HashMap;
 use std::path::Path;
 
-/// A mesh read from gmsh, with the map from gmsh node tags to our node indices.
-#[derive(Debug, Clone)]
-pub struct MshMesh {
-    pub mesh: TetMesh,
-    /// gmsh node tag → node index (nodes are numbered in file order).
-    pub node_index: HashMap<u64, usize>,
-    /// `$PhysicalNames`: (dimension, tag, name).
-    pub physical_names: Vec<(i32, i32, String)>,
+/// One entry of `$PhysicalNames`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PhysicalName {
+    /// Dimension of the group (0 points … 3 volumes).
+    pub dim: i32,
+    pub tag: i32,
+    pub name: String,
 }
 
-/// gmsh's 10-node tetrahedron numbers its edges (0,1) (1,2) (2,0) (3,0) (3,2) (3,1);
-/// ours (VTK) (0,1) (1,2) (0,2) (0,3) (1,3) (2,3): our node k is gmsh's node GMSH_TET10[k].
-const GMSH_TET10: [usize; 10] = [0, 1, 2, 3, 4, 5, 6, 7, 9, 8];
+/// A tetrahedral mesh read from gmsh, with what is needed to go back to gmsh's
+/// numbering and to its physical groups.
+#[derive(Debug, Clone)]
+pub struct MshMesh {
+    /// Nodes in file order, numbered 0..n; tets in file order, positively oriented.
+    pub mesh: TetMesh,
+    /// gmsh node tag → node index in `mesh`.
+    pub node_index: HashMap<u64, usize>,
+    /// `$PhysicalNames`, in file order (empty when the section is absent).
+    pub physical_names: Vec<PhysicalName>,
+    /// Per element of `mesh`: the tag of the gmsh volume entity it belongs to.
+    pub element_entity: Vec<i32>,
+    /// Volume entity tag → its physical tags (from `$Entities`).
+    pub entity_physical: HashMap<i32, Vec<i32>>,
+}
 
-/// Reads the tetrahedra of a gmsh MSH 4.1 file (lower-dimensional elements are skipped).
+impl MshMesh {
+    /// Physical tags of element `e` (empty when its volume is in no physical group).
+    pub fn physical_tags(&self, e: usize) -> &[i32] {
+        self.element_entity
+            .get(e)
+            .and_then(|t| self.entity_physical.get(t))
+            .map_or(&[], |v| v.as_slice())
+    }
+
+    /// The tag of the physical group called `name` of dimension `dim`.
+    pub fn physical_tag(&self, dim: i32, name: &str) -> Option<i32> {
+        self.physical_names
+            .iter()
+            .find(|p| p.dim == dim && p.name == name)
+            .map(|p| p.tag)
+    }
+
+    /// The elements in the 3-D physical group `tag`, in order.
+    pub fn elements_in_physical(&self, tag: i32) -> Vec<usize> {
+        (0..self.element_entity.len())
+            .filter(|&e| self.physical_tags(e).contains(&tag))
+            .collect()
+    }
+}
+
+/// gmsh numbers the 10-node tetrahedron's edges (0,1) (1,2) (2,0) (3,0) (3,2) (3,1)
+/// (node 8 on edge 2–3, node 9 on edge 1–3); ours (VTK) (0,1) (1,2) (0,2) (0,3)
+/// (1,3) (2,3). Our node k is gmsh's node `GMSH_TET10[k]`.
+const GMSH_TET10: [usize; 10] = [0, 1, 2, 3, 4, 5, 6, 7, 9, 8];
+const GMSH_TET4: [usize; 4] = [0, 1, 2, 3];
+
+/// Reads the tetrahedra of a gmsh MSH 4.1 file (ASCII or binary).
+///
+/// Nodes keep the file's order and are renumbered 0..n (`node_index` maps
+/// back); every node of the file is kept, also one no tet uses. Errors: no
+/// tetrahedra, 4- and 10-node tets mixed, a referenced node tag that is
+/// missing, a node tag given twice, a non-finite coordinate, a tet of zero
+/// volume, a volume element other than a tet.
+///
+/// With dense tags (1..N without gaps) gmsh does not need to store them and
+/// `mshio` assumes they run in file order, as gmsh writes them.
 pub fn read_msh(path: &Path) -> Result<MshMesh, IoError> {
-    let bytes = std::fs::read(path).map_err(|e| IoError::new(path, e.to_string()))?;
-    let file = mshio::parse_msh_bytes(&bytes).map_err(|e| {
-        let text = format!("{e}");
-        IoError::new(
+    let bytes = read_bytes(path)?;
+    // mshio is a third-party parser of untrusted bytes: a panic in it (say, an
+    // arithmetic overflow on a hostile header) becomes an error naming the file.
+    let parsed = std::panic::catch_unwind(|| {
+        mshio::parse_msh_bytes(&bytes).map_err(|e| {
+            let text = e.to_string();
+            let first = text.lines().find(|l| !l.trim().is_empty()).unwrap_or("");
+            format!("not a readable MSH 4.1 file: {}", first.trim())
+        })
+    });
+    let file = match parsed {
+        Ok(Ok(file)) => file,
+        Ok(Err(message)) => return Err(IoError::invalid(path, message)),
+        Err(_) => {
+            return Err(IoError::invalid(
+                path,
+                "not a readable MSH 4.1 file (the parser gave up)",
+            ))
+        }
+    };
+    if file.header.version < 4.1 || file.header.version >= 5.0 {
+        return Err(IoError::unsupported(
             path,
-            format!(
-                "not a readable MSH 4.1 file: {}",
-                text.lines().next().unwrap_or("parse error")
-            ),
-        )
-    })?;
+            format!("MSH version {} (only 4.1 is read)", file.header.version),
+        ));
+    }
     let nodes = file
         .data
         .nodes
         .as_ref()
-        .ok_or_else(|| IoError::new(path, "no $Nodes section"))?;
+        .ok_or_else(|| IoError::invalid(path, "no $Nodes section"))?;
     let elements = file
         .data
         .elements
         .as_ref()
-        .ok_or_else(|| IoError::new(path, "no $Elements section"))?;
+        .ok_or_else(|| IoError::invalid(path, "no $Elements section"))?;
 
-    // Nodes in file order. Dense tags (min..=max, no gaps) are sequential across blocks.
-    let mut points = Vec::with_capacity(nodes.num_nodes as usize);
-    let mut node_index: HashMap<u64, usize> = HashMap::with_capacity(nodes.num_nodes as usize);
+    let n_nodes = usize::try_from(nodes.num_nodes).unwrap_or(0);
+    let mut points = Vec::with_capacity(n_nodes.min(1 << 24));
+    let mut node_index: HashMap<u64, usize> = HashMap::with_capacity(n_nodes.min(1 << 24));
     let mut next_tag = nodes.min_node_tag;
     for block in &nodes.node_blocks {
-        let mut tags: Vec<(u64, usize)> = match &block.node_tags {
-            Some(map) => map.iter().map(|(&t, &i)| (t, i)).collect(),
-            None => (0..block.nodes.len())
-                .map(|i| (next_tag + i as u64, i))
-                .collect(),
+        let n = block.nodes.len();
+        let tags: Vec<u64> = match &block.node_tags {
+            Some(map) => {
+                if map.len() != n {
+                    return Err(IoError::invalid(
+                        path,
+                        format!(
+                            "a node block of entity {} gives a node tag twice",
+                            block.entity_tag
+                        ),
+                    ));
+                }
+                let mut tags = vec![0; n];
+                for (&tag, &i) in map {
+                    tags[i] = tag;
+                }
+                tags
+            }
+            None => (next_tag..next_tag.saturating_add(n as u64)).collect(),
         };
-        tags.sort_unstable_by_key(|&(_, i)| i);
-        next_tag += block.nodes.len() as u64;
-        for (tag, i) in tags {
-            let n = &block.nodes[i];
-            if !(n.x.is_finite() && n.y.is_finite() && n.z.is_finite()) {
-                return Err(IoError::new(
+        next_tag = next_tag.saturating_add(n as u64);
+        for (tag, p) in tags.into_iter().zip(&block.nodes) {
+            if !(p.x.is_finite() && p.y.is_finite() && p.z.is_finite()) {
+                return Err(IoError::invalid(
                     path,
                     format!("node {tag} has a non-finite coordinate"),
                 ));
             }
-            node_index.insert(tag, points.len());
-            points.push(Point3::new(n.x, n.y, n.z));
+            if node_index.insert(tag, points.len()).is_some() {
+                return Err(IoError::invalid(
+                    path,
+                    format!("node tag {tag} appears twice"),
+                ));
+            }
+            points.push(Point3::new(p.x, p.y, p.z));
         }
     }
 
     let mut kind = None;
     let mut cells = Vec::new();
+    let mut element_entity = Vec::new();
     for block in &elements.element_blocks {
+        if block.entity_dim < 3 {
+            continue;
+        }
         let (k, order): (ElementKind, &[usize]) = match block.element_type {
-            ElementType::Tet4 => (ElementKind::Tet4, &[0, 1, 2, 3]),
+            ElementType::Tet4 => (ElementKind::Tet4, &GMSH_TET4),
             ElementType::Tet10 => (ElementKind::Tet10, &GMSH_TET10),
-            _ if block.entity_dim < 3 => continue,
             other => {
-                return Err(IoError::new(
+                return Err(IoError::unsupported(
                     path,
                     format!(
-                    "unsupported volume element type {other:?} (only 4- and 10-node tetrahedra)"
+                    "volume element type {other:?} in entity {} (only 4- and 10-node tetrahedra)",
+                    block.entity_tag
                 ),
                 ))
             }
         };
         if kind.is_some_and(|kk| kk != k) {
-            return Err(IoError::new(path, "mixes 4- and 10-node tetrahedra"));
+            return Err(IoError::unsupported(
+                path,
+                "mixes 4- and 10-node tetrahedra",
+            ));
         }
         kind = Some(k);
+        cells.reserve(block.elements.len() * k.nodes());
         for el in &block.elements {
             if el.nodes.len() != k.nodes() {
-                return Err(IoError::new(
+                return Err(IoError::invalid(
                     path,
                     format!(
                         "element {} has {} nodes, expected {}",
@@ -106,73 +202,156 @@ pub fn read_msh(path: &Path) -> Result<MshMesh, IoError> {
             for &g in order {
                 let tag = el.nodes[g];
                 let i = node_index.get(&tag).ok_or_else(|| {
-                    IoError::new(
+                    IoError::invalid(
                         path,
                         format!("element {} references missing node {tag}", el.element_tag),
                     )
                 })?;
                 cells.push(*i);
             }
+            element_entity.push(block.entity_tag);
         }
     }
-    let kind = kind.ok_or_else(|| IoError::new(path, "contains no tetrahedra"))?;
+    let kind = kind.ok_or_else(|| IoError::invalid(path, "contains no tetrahedra"))?;
     let mut mesh = TetMesh {
         kind,
         nodes: points,
         cells,
     };
-    for e in 0..mesh.n_elements() {
-        if mesh.volume(e) == 0.0 {
-            return Err(IoError::new(
-                path,
-                format!("tetrahedron {e} is degenerate (zero volume)"),
-            ));
-        }
+    if let Some(e) = (0..mesh.n_elements()).find(|&e| mesh.volume(e) == 0.0) {
+        return Err(IoError::invalid(
+            path,
+            format!("tetrahedron {e} (in file order) is degenerate: zero volume"),
+        ));
     }
     mesh.orient_positively();
+
+    let entity_physical = file
+        .data
+        .entities
+        .as_ref()
+        .map(|ent| {
+            ent.volumes
+                .iter()
+                .map(|v| (v.tag, v.physical_tags.clone()))
+                .collect()
+        })
+        .unwrap_or_default();
     Ok(MshMesh {
         mesh,
         node_index,
-        physical_names: physical_names(&bytes),
+        physical_names: physical_names(path, &bytes)?,
+        element_entity,
+        entity_physical,
     })
 }
 
-/// `$PhysicalNames` (ASCII even in binary files), which mshio skips.
-fn physical_names(bytes: &[u8]) -> Vec<(i32, i32, String)> {
-    let text = String::from_utf8_lossy(bytes);
-    let Some(start) = text.find("$PhysicalNames") else {
-        return Vec::new();
+fn find(haystack: &[u8], needle: &[u8]) -> Option<usize> {
+    haystack.windows(needle.len()).position(|w| w == needle)
+}
+
+/// `$PhysicalNames` (ASCII text even in binary files; it comes before the
+/// first section that may hold binary data, `$Entities` or `$Nodes`).
+fn physical_names(path: &Path, bytes: &[u8]) -> Result<Vec<PhysicalName>, IoError> {
+    let head_end = [&b"$Entities"[..], b"$PartitionedEntities", b"$Nodes"]
+        .iter()
+        .filter_map(|m| find(bytes, m))
+        .min()
+        .unwrap_or(bytes.len());
+    let head = &bytes[..head_end];
+    let Some(start) = find(head, b"$PhysicalNames") else {
+        return Ok(Vec::new());
     };
-    let Some(end) = text[start..].find("$EndPhysicalNames") else {
-        return Vec::new();
-    };
-    text[start..start + end]
-        .lines()
-        .skip(2)
-        .filter_map(|l| {
-            let mut it = l.splitn(3, ' ');
-            let dim = it.next()?.trim().parse().ok()?;
-            let tag = it.next()?.trim().parse().ok()?;
-            let name = it.next()?.trim().trim_matches('"').to_string();
-            Some((dim, tag, name))
-        })
-        .collect()
+    let body = &head[start + b"$PhysicalNames".len()..];
+    let end = find(body, b"$EndPhysicalNames")
+        .ok_or_else(|| IoError::invalid(path, "$PhysicalNames has no $EndPhysicalNames"))?;
+    let text = std::str::from_utf8(&body[..end])
+        .map_err(|_| IoError::invalid(path, "$PhysicalNames is not UTF-8 text"))?;
+    let mut lines = text.lines().map(str::trim).filter(|l| !l.is_empty());
+    let bad = |line: &str| IoError::invalid(path, format!("bad $PhysicalNames line `{line}`"));
+    let count_line = lines.next().unwrap_or("");
+    let count: usize = count_line.parse().map_err(|_| bad(count_line))?;
+    let mut names = Vec::with_capacity(count.min(1 << 16));
+    for line in lines {
+        let mut it = line.splitn(3, char::is_whitespace);
+        let dim = it
+            .next()
+            .and_then(|s| s.parse().ok())
+            .ok_or_else(|| bad(line))?;
+        let tag = it
+            .next()
+            .and_then(|s| s.parse().ok())
+            .ok_or_else(|| bad(line))?;
+        let name = it.next().map(str::trim).ok_or_else(|| bad(line))?;
+        let name = name
+            .strip_prefix('"')
+            .and_then(|n| n.strip_suffix('"'))
+            .ok_or_else(|| bad(line))?;
+        names.push(PhysicalName {
+            dim,
+            tag,
+            name: name.to_string(),
+        });
+    }
+    if names.len() != count {
+        return Err(IoError::invalid(
+            path,
+            format!(
+                "$PhysicalNames announces {count} names but holds {}",
+                names.len()
+            ),
+        ));
+    }
+    Ok(names)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::TET10_EDGES;
 
+    fn fixture(name: &str) -> std::path::PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/fixtures")
+            .join(name)
+    }
+
+    fn write(dir: &tempfile::TempDir, text: &str) -> std::path::PathBuf {
+        let p = dir.path().join("m.msh");
+        std::fs::write(&p, text).unwrap();
+        p
+    }
+
+    /// Mid-nodes sit at the middle of their edges (straight-sided tets).
+    fn assert_midnodes_on_edges(m: &TetMesh, tol: f64) {
+        for e in 0..m.n_elements() {
+            let c = m.element(e);
+            for (k, &(a, b)) in TET10_EDGES.iter().enumerate() {
+                let mid = (m.nodes[c[a]].coords + m.nodes[c[b]].coords) * 0.5;
+                let off = (m.nodes[c[4 + k]].coords - mid).norm();
+                assert!(off <= tol, "element {e}, mid-node {}: off by {off}", 4 + k);
+            }
+        }
+    }
+
+    /// Two tets, node tags with gaps (1 5 10 11 20), the second one negatively
+    /// oriented as written, a triangle to skip and physical groups.
     const TWO_TETS: &str = r#"$MeshFormat
 4.1 0 8
 $EndMeshFormat
 $PhysicalNames
-1
+2
+2 3 "bottom face"
 3 7 "body"
 $EndPhysicalNames
+$Entities
+0 0 1 1
+4 0 0 0 1 1 0 1 3 0
+2 0 0 0 1 1 1 1 7 0
+$EndEntities
 $Nodes
 1 5 1 20
-3 1 0 5
+3 2 0 5
 1
 5
 10
@@ -185,42 +364,191 @@ $Nodes
 1 1 1
 $EndNodes
 $Elements
-1 2 1 2
-3 1 4 2
+2 3 1 9
+2 4 2 1
+9 1 5 10
+3 2 4 2
 1 1 5 10 11
 2 5 11 10 20
 $EndElements
 "#;
 
     #[test]
-    fn reads_tets_with_sparse_tags_and_fixes_orientation() {
+    fn reads_tets_with_sparse_tags_fixes_orientation_and_skips_triangles() {
         let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join("m.msh");
-        std::fs::write(&p, TWO_TETS).unwrap();
-        let m = read_msh(&p).unwrap();
+        let m = read_msh(&write(&dir, TWO_TETS)).unwrap();
         assert_eq!(m.mesh.kind, ElementKind::Tet4);
         assert_eq!(m.mesh.n_nodes(), 5);
         assert_eq!(m.mesh.n_elements(), 2);
+        // Written as 5 11 10 20 (negative): vertices 1 and 2 swapped.
+        assert!(tet_is_negative(&m.mesh, [1, 3, 2, 4]));
+        assert_eq!(m.mesh.element(1), &[1, 2, 3, 4]);
+        assert_eq!(m.mesh.element(0), &[0, 1, 2, 3]);
         assert!((0..2).all(|e| m.mesh.volume(e) > 0.0));
-        assert_eq!(m.node_index[&20], 4);
-        assert_eq!(m.physical_names, vec![(3, 7, "body".to_string())]);
+        let tags = [1, 5, 10, 11, 20];
+        for (i, t) in tags.iter().enumerate() {
+            assert_eq!(m.node_index[t], i);
+        }
+        assert_eq!(
+            m.physical_names,
+            vec![
+                PhysicalName {
+                    dim: 2,
+                    tag: 3,
+                    name: "bottom face".into()
+                },
+                PhysicalName {
+                    dim: 3,
+                    tag: 7,
+                    name: "body".into()
+                }
+            ]
+        );
+        assert_eq!(m.physical_tag(3, "body"), Some(7));
+        assert_eq!(m.physical_tags(0), &[7]);
+        assert_eq!(m.elements_in_physical(7), vec![0, 1]);
+    }
+
+    fn tet_is_negative(m: &TetMesh, v: [usize; 4]) -> bool {
+        crate::mesh::tet_volume(&v.map(|i| m.nodes[i])) < 0.0
+    }
+
+    /// One 10-node tet in gmsh's order (node 8 on edge 2–3, node 9 on 1–3),
+    /// written negatively oriented (vertices 1 and 2 exchanged).
+    const ONE_TET10: &str = r#"$MeshFormat
+4.1 0 8
+$EndMeshFormat
+$Nodes
+1 10 1 10
+3 1 0 10
+1
+2
+3
+4
+5
+6
+7
+8
+9
+10
+0 0 0
+0 1 0
+1 0 0
+0 0 1
+0 0.5 0
+0.5 0.5 0
+0.5 0 0
+0 0 0.5
+0.5 0 0.5
+0 0.5 0.5
+$EndNodes
+$Elements
+1 1 1 1
+3 1 11 1
+1 1 2 3 4 5 6 7 8 9 10
+$EndElements
+"#;
+
+    #[test]
+    fn tet10_from_gmsh_order_is_vtk_order_and_positive() {
+        let dir = tempfile::tempdir().unwrap();
+        let m = read_msh(&write(&dir, ONE_TET10)).unwrap();
+        assert_eq!(m.mesh.kind, ElementKind::Tet10);
+        assert!(m.mesh.volume(0) > 0.0);
+        assert_midnodes_on_edges(&m.mesh, 0.0);
+        assert!(m.physical_names.is_empty() && m.physical_tags(0).is_empty());
     }
 
     #[test]
-    fn bad_files_give_errors_not_panics() {
+    fn gmsh_written_tet10_ascii_and_binary_agree() {
+        // Unit cube meshed by gmsh 4.8 with order 2, physical volume "body" (tag 1)
+        // and physical surface "bottom" (tag 2): see tests/fixtures/README.md.
+        let a = read_msh(&fixture("gmsh_cube_tet10_ascii.msh")).unwrap();
+        let b = read_msh(&fixture("gmsh_cube_tet10_binary.msh")).unwrap();
+        for m in [&a, &b] {
+            assert_eq!(m.mesh.kind, ElementKind::Tet10);
+            assert!(m.mesh.n_elements() > 0);
+            assert!((0..m.mesh.n_elements()).all(|e| m.mesh.volume(e) > 0.0));
+            let total: f64 = (0..m.mesh.n_elements()).map(|e| m.mesh.volume(e)).sum();
+            assert!((total - 1.0).abs() < 1e-12, "volume {total}");
+            assert_midnodes_on_edges(&m.mesh, 1e-12);
+            let body = m.physical_tag(3, "body").unwrap();
+            assert_eq!(m.elements_in_physical(body).len(), m.mesh.n_elements());
+            assert!(m.physical_tag(2, "bottom").is_some());
+        }
+        // gmsh writes ASCII coordinates with 16 digits, binary ones exactly.
+        assert_eq!(a.mesh.n_nodes(), b.mesh.n_nodes());
+        for (p, q) in a.mesh.nodes.iter().zip(&b.mesh.nodes) {
+            assert!((p - q).norm() < 1e-15);
+        }
+        assert_eq!(a.mesh.cells, b.mesh.cells);
+        assert_eq!(a.node_index, b.node_index);
+        assert_eq!(a.physical_names, b.physical_names);
+    }
+
+    #[test]
+    fn gmsh_written_tet4_binary_reads() {
+        let m = read_msh(&fixture("gmsh_cube_tet4_binary.msh")).unwrap();
+        assert_eq!(m.mesh.kind, ElementKind::Tet4);
+        let total: f64 = (0..m.mesh.n_elements()).map(|e| m.mesh.volume(e)).sum();
+        assert!((total - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn bad_files_give_clear_errors_not_panics() {
         let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join("m.msh");
-        for text in [
-            TWO_TETS.replace("2 5 11 10 20", "2 5 11 10 99"),
-            "garbage".to_string(),
-            TWO_TETS
-                .replace("3 1 4 2", "3 1 2 2")
-                .replace("1 1 5 10 11\n2 5 11 10 20", "1 1 5 10\n2 5 11 10"),
-        ] {
-            std::fs::write(&p, &text).unwrap();
+        let cases: Vec<(String, &str)> = vec![
+            (
+                TWO_TETS.replace("2 5 11 10 20", "2 5 11 10 99"),
+                "missing node 99",
+            ),
+            ("garbage".into(), "not a readable MSH"),
+            (String::new(), "not a readable MSH"),
+            // Only the triangle: no tets.
+            (
+                TWO_TETS
+                    .replace("2 3 1 9", "1 1 9 9")
+                    .replace("3 2 4 2\n1 1 5 10 11\n2 5 11 10 20\n", ""),
+                "no tetrahedra",
+            ),
+            (TWO_TETS.replace("0 0 1\n1 1 1", "0 0 1\n1 1 nan"), ""),
+            (TWO_TETS.replace("\n11\n20\n", "\n11\n11\n"), "twice"),
+            (
+                TWO_TETS.replace("1 0 0\n0 1 0", "1 0 0\n2 0 0"),
+                "zero volume",
+            ),
+            (
+                TWO_TETS.replace("3 7 \"body\"", "3 7 body"),
+                "$PhysicalNames",
+            ),
+            (
+                TWO_TETS.replace("$PhysicalNames\n2", "$PhysicalNames\n3"),
+                "announces",
+            ),
+            (TWO_TETS.replace("4.1 0 8", "2.2 0 8"), ""),
+        ];
+        for (text, what) in cases {
+            let p = write(&dir, &text);
             let err = read_msh(&p).unwrap_err().to_string();
             assert!(err.contains("m.msh"), "{err}");
+            assert!(err.contains(what), "expected `{what}` in: {err}");
         }
-        assert!(read_msh(&dir.path().join("missing.msh")).is_err());
+        let err = read_msh(&dir.path().join("missing.msh")).unwrap_err();
+        assert!(matches!(err, IoError::Os { .. }), "{err}");
+    }
+
+    #[test]
+    fn truncated_files_never_panic() {
+        let dir = tempfile::tempdir().unwrap();
+        for source in [
+            TWO_TETS.as_bytes().to_vec(),
+            std::fs::read(fixture("gmsh_cube_tet4_binary.msh")).unwrap(),
+        ] {
+            for cut in (0..source.len()).step_by(7) {
+                let p = dir.path().join("t.msh");
+                std::fs::write(&p, &source[..cut]).unwrap();
+                let _ = read_msh(&p);
+            }
+        }
     }
 }
