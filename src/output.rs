@@ -5,23 +5,13 @@
 //! each displaced by u + ψa of its side, so the crack opens in the picture.
 
 use crate::cut::ElementCut;
+use crate::io::{write_probes_csv, write_pvd, write_vtu, VtuData};
 use crate::mesh::ElementKind;
 use crate::model::Model;
 use crate::run::{RunError, RunResult};
 use crate::scene::Scene;
 use nalgebra::{Point3, Vector3};
-use std::fmt::Write as _;
 use std::path::Path;
-
-/// Writes `text` to `path` through a temporary file and a rename.
-pub fn write_atomic(path: &Path, text: &str) -> Result<(), RunError> {
-    let tmp = path.with_extension(format!(
-        "{}.tmp",
-        path.extension().and_then(|e| e.to_str()).unwrap_or("")
-    ));
-    std::fs::write(&tmp, text).map_err(|e| RunError::Output(format!("{}: {e}", tmp.display())))?;
-    std::fs::rename(&tmp, path).map_err(|e| RunError::Output(format!("{}: {e}", path.display())))
-}
 
 /// Points, cells and per-point displacement of the deformed-state picture.
 struct Picture {
@@ -82,71 +72,50 @@ fn picture(model: &Model, d: &[f64]) -> Picture {
     pic
 }
 
-fn vtu_text(pic: &Picture) -> String {
-    let mut s = String::with_capacity(64 * pic.points.len() + 32 * pic.cells.len());
-    let _ = writeln!(s, "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n<UnstructuredGrid>");
-    let _ = writeln!(
-        s,
-        "<Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">",
-        pic.points.len(),
-        pic.cells.len()
+fn vtu_data(pic: &Picture) -> VtuData {
+    let mut data = VtuData {
+        points: pic.points.iter().flat_map(|p| [p.x, p.y, p.z]).collect(),
+        ..VtuData::default()
+    };
+    for (t, c) in &pic.cells {
+        data.push_cell(*t, c);
+    }
+    data.point_data.insert(
+        "u".into(),
+        (3, pic.disp.iter().flat_map(|u| [u.x, u.y, u.z]).collect()),
     );
-    s.push_str(
-        "<Points>\n<DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n",
+    data.cell_data.insert(
+        "cut".into(),
+        (1, pic.cut_flag.iter().map(|&f| f64::from(f)).collect()),
     );
-    for p in &pic.points {
-        let _ = writeln!(s, "{:e} {:e} {:e}", p.x, p.y, p.z);
-    }
-    s.push_str("</DataArray>\n</Points>\n<Cells>\n<DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">\n");
-    for (_, c) in &pic.cells {
-        for i in c {
-            let _ = write!(s, "{i} ");
-        }
-        s.push('\n');
-    }
-    s.push_str("</DataArray>\n<DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">\n");
-    let mut off = 0;
-    for (_, c) in &pic.cells {
-        off += c.len();
-        let _ = write!(s, "{off} ");
-    }
-    s.push_str("\n</DataArray>\n<DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">\n");
-    for (t, _) in &pic.cells {
-        let _ = write!(s, "{t} ");
-    }
-    s.push_str("\n</DataArray>\n</Cells>\n<PointData Vectors=\"u\">\n<DataArray type=\"Float64\" Name=\"u\" NumberOfComponents=\"3\" format=\"ascii\">\n");
-    for u in &pic.disp {
-        let _ = writeln!(s, "{:e} {:e} {:e}", u.x, u.y, u.z);
-    }
-    s.push_str("</DataArray>\n</PointData>\n<CellData>\n<DataArray type=\"UInt8\" Name=\"cut\" format=\"ascii\">\n");
-    for f in &pic.cut_flag {
-        let _ = write!(s, "{f} ");
-    }
-    s.push_str("\n</DataArray>\n</CellData>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>\n");
-    s
+    data
+}
+
+fn out_err(e: crate::io::IoError) -> RunError {
+    RunError::Output(e.to_string())
 }
 
 /// Writes `result.vtu` (last state) and, for a dynamic run, `result.pvd` with
-/// one `frames/result_K.vtu` per kept frame.
+/// one `frames/result_K.vtu` per kept frame; each file whole or not at all.
 pub fn write_result(_scene: &Scene, result: &RunResult, out: &Path) -> Result<(), RunError> {
     let model = &result.model;
     if !result.frames.is_empty() {
         let dir = out.join("frames");
         std::fs::create_dir_all(&dir)
             .map_err(|e| RunError::Output(format!("{}: {e}", dir.display())))?;
-        let mut pvd = String::from("<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n<Collection>\n");
+        let mut series = Vec::with_capacity(result.frames.len());
         for (k, (t, d)) in result.frames.iter().enumerate() {
             let name = format!("frames/result_{k:05}.vtu");
-            write_atomic(&out.join(&name), &vtu_text(&picture(model, d)))?;
-            let _ = writeln!(pvd, "<DataSet timestep=\"{t:e}\" file=\"{name}\"/>");
+            write_vtu(&out.join(&name), &vtu_data(&picture(model, d))).map_err(out_err)?;
+            series.push((*t, name));
         }
-        pvd.push_str("</Collection>\n</VTKFile>\n");
-        write_atomic(&out.join("result.pvd"), &pvd)?;
+        write_pvd(&out.join("result.pvd"), &series).map_err(out_err)?;
     }
-    write_atomic(
+    write_vtu(
         &out.join("result.vtu"),
-        &vtu_text(&picture(model, &result.d)),
+        &vtu_data(&picture(model, &result.d)),
     )
+    .map_err(out_err)
 }
 
 /// Writes `probes.csv`: header `x,y,z,ux,uy,uz`, one row per probe.
@@ -155,13 +124,5 @@ pub fn write_probes(
     points: &[Point3<f64>],
     values: &[Vector3<f64>],
 ) -> Result<(), RunError> {
-    let mut s = String::from("x,y,z,ux,uy,uz\n");
-    for (p, u) in points.iter().zip(values) {
-        let _ = writeln!(
-            s,
-            "{:e},{:e},{:e},{:e},{:e},{:e}",
-            p.x, p.y, p.z, u.x, u.y, u.z
-        );
-    }
-    write_atomic(path, &s)
+    write_probes_csv(path, points, values).map_err(out_err)
 }
