@@ -27,6 +27,10 @@ SETS = {
     "test": {"levels": [0, 1], "fine": False},
     "all": {"levels": list(range(len(LEVELS))), "fine": True},
 }
+VENV_PY = str(ROOT / ".venv" / "bin" / "python")
+# Corotational references (scikit-fem): (case, family, level, degree). Newton with the R K R^T
+# tangent converges linearly, so these are few and coarse.
+COROT = [("stretch_face", "beam_crack", "L0", 1)]
 
 
 def tool_versions() -> str:
@@ -106,6 +110,19 @@ def main() -> None:
                 manifest[key] = info
                 write_json(manifest_path, manifest)
                 mark(target, hh)
+    for case, family, name, degree in COROT:
+        if case not in a.cases or (family, name) not in mesh_hash:
+            continue
+        target = OUT / case / f"{family}_{name}" / f"corot_p{degree}.vtu"
+        hh = file_hash(ROOT / "solve_corot.py", ROOT / "common.py", CASES / f"{case}.toml",
+                       extra=f"{mesh_hash[(family, name)]} {degree} {versions}")
+        if up_to_date(target, hh):
+            print(f"  skip  {case} {family}_{name}/corot_p{degree} (up to date)", flush=True)
+            continue
+        target.parent.mkdir(parents=True, exist_ok=True)
+        run([VENV_PY, "solve_corot.py", case, str(OUT / "meshes" / family / f"{name}.msh"), str(degree), str(target)],
+            f"scikit-fem corotational {case} {family}_{name}/p{degree}")
+        mark(target, hh)
     print("refs: done", flush=True)
 
 

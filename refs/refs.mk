@@ -11,6 +11,11 @@ refs-env:
 	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(REFS_DEBS) >/dev/null; \
 	fi
 	@$(REFS_PY) -c "import dolfinx, gmsh, meshio; print('refs: dolfinx', dolfinx.__version__)"
+	@# scikit-fem from PyPI in a venv that sees Debian's numpy, scipy and meshio.
+	@if ! refs/.venv/bin/python -c "import skfem" 2>/dev/null; then \
+	  echo "refs: creating refs/.venv with scikit-fem"; \
+	  rm -rf refs/.venv && $(REFS_PY) -m venv --system-site-packages refs/.venv && refs/.venv/bin/pip install -q scikit-fem; \
+	fi
 
 # Every level and the fine reference (make refs NP=4 runs the solves under mpirun).
 refs: refs-env

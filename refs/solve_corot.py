@@ -39,7 +39,7 @@ def main() -> None:
     ap.add_argument("mesh", type=Path)
     ap.add_argument("degree", type=int, choices=[1, 2])
     ap.add_argument("out", type=Path)
-    ap.add_argument("--steps", type=int, default=10)
+    ap.add_argument("--steps", type=int, default=20)
     ap.add_argument("--tol", type=float, default=1e-11)
     ap.add_argument("--verbose", action="store_true")
     a = ap.parse_args()
@@ -52,20 +52,19 @@ def main() -> None:
     basis = Basis(mesh, elem, intorder=1 if a.degree == 1 else 2)
     eye = np.eye(3)[:, :, None, None]
 
-    def rotation(w):
-        return polar(eye + grad(w["u"]))
-
+    # The rotations are computed once per iteration and passed to the forms
+    # (a form's kernel runs once per basis function pair).
     @LinearForm
     def internal(v, w):
         F = eye + grad(w["u"])
-        R = polar(F)
+        R = w["R"]
         RtF = np.einsum("ki...,kj...->ij...", R, F)
         P = 2 * mu * (F - R) + lam * (np.einsum("ii...", RtF) - 3) * R
         return ddot(P, grad(v))
 
     @BilinearForm
     def tangent(u, v, w):
-        R = rotation(w)
+        R = w["R"]
         G = np.einsum("ki...,kj...->ij...", R, grad(u))  # R^T grad(u)
         eps = 0.5 * (G + np.einsum("ij...->ji...", G))
         sig = lam * np.einsum("ii...", eps) * np.eye(3)[:, :, None, None] + 2 * mu * eps
@@ -104,7 +103,9 @@ def main() -> None:
         s = step / a.steps
         u[D] = s * vals
         for it in range(200):
-            r = s * f_body - asm(internal, basis, u=basis.interpolate(u))
+            ui = basis.interpolate(u)
+            R = polar(eye + ui.grad)
+            r = s * f_body - asm(internal, basis, u=ui, R=R)
             free = np.setdiff1d(np.arange(basis.N), D)
             scale = max(np.linalg.norm(s * f_body), np.linalg.norm(r + s * f_body), 1e-300)
             res = np.linalg.norm(r[free]) / scale
@@ -113,9 +114,18 @@ def main() -> None:
                 break
             if a.verbose:
                 print(f"step {step} it {it} residual {res:.3e}", flush=True)
-            K = asm(tangent, basis, u=basis.interpolate(u))
+            K = asm(tangent, basis, R=R)
             du = solve(*condense(K, r, D=D, x=np.zeros(basis.N)))
-            u += du
+            # Backtracking on the residual norm: R K R^T is not the exact tangent.
+            alpha = 1.0
+            for _ in range(8):
+                trial = u + alpha * du
+                ti = basis.interpolate(trial)
+                rt = s * f_body - asm(internal, basis, u=ti, R=polar(eye + ti.grad))
+                if np.linalg.norm(rt[free]) < np.linalg.norm(r[free]):
+                    break
+                alpha *= 0.5
+            u = trial
         else:
             raise SystemExit(f"error: Newton did not converge in load step {step} (residual {res:.2e})")
         iterations.append(it)

@@ -57,8 +57,8 @@ enum Command {
 
 fn main() {
     if let Err(e) = run() {
-        let chain: Vec<String> = e.chain().map(|c| c.to_string()).collect();
-        eprintln!("error: {}", chain.join(": ").replace('\n', " "));
+        // Our errors carry their causes in their own message: print the top one.
+        eprintln!("error: {}", e.to_string().replace('\n', " "));
         std::process::exit(1);
     }
 }

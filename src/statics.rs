@@ -94,7 +94,7 @@ pub fn solve_static(
                     update_rotations: !linear,
                 },
             );
-            let mut r_full: Vec<f64> = model
+            let r_full: Vec<f64> = model
                 .load
                 .iter()
                 .zip(&f_int)
@@ -127,8 +127,47 @@ pub fn solve_static(
                 chol.factorize(&tangent)?;
             }
             chol.solve_in_place(&mut r_free);
-            r_full.fill(0.0);
-            scatter_free_add(model, &r_free, &mut d);
+            if linear {
+                scatter_free_add(model, &r_free, &mut d);
+            } else {
+                // Backtracking on the residual norm: R K Rᵀ is not the exact
+                // tangent of the corotational forces, and far from the solution
+                // a full step can overshoot.
+                let before = residual * scale;
+                let start = d.clone();
+                let mut alpha = 1.0;
+                for _ in 0..8 {
+                    d.copy_from_slice(&start);
+                    for (dof, &eq) in model.equation.iter().enumerate() {
+                        if eq != crate::model::NONE {
+                            d[dof] += alpha * r_free[eq as usize];
+                        }
+                    }
+                    evaluate(
+                        model,
+                        &d,
+                        &mut rot,
+                        &mut ws,
+                        Request {
+                            forces: Some(&mut f_int),
+                            tangent: None,
+                            update_rotations: true,
+                        },
+                    );
+                    let trial: f64 = model
+                        .equation
+                        .iter()
+                        .enumerate()
+                        .filter(|(_, &eq)| eq != crate::model::NONE)
+                        .map(|(dof, _)| (lambda * model.load[dof] - f_int[dof]).powi(2))
+                        .sum::<f64>()
+                        .sqrt();
+                    if trial < before {
+                        break;
+                    }
+                    alpha *= 0.5;
+                }
+            }
             it += 1;
         }
         iterations.push(it);
