@@ -3,7 +3,7 @@ SHELL := /bin/bash
 CARGO ?= $(shell command -v cargo || echo $$HOME/.cargo/bin/cargo)
 NP ?= 1
 
-.PHONY: all build test report bench rust refs-env refs refs-test clean
+.PHONY: all build test report bench bench-report rust refs-env refs refs-test clean
 
 all: build
 
@@ -23,9 +23,19 @@ test: build $(if $(wildcard refs/refs.mk),refs-test)
 bench: build
 	$(CARGO) bench --bench step
 
-report: build $(if $(wildcard refs/refs.mk),refs)
-	@mkdir -p reports
-	$(CARGO) run --release -- run cases/gravity_uncut.toml --out out/gravity_uncut
+REPORT_CASES := gravity stretch bend stretch_face bend_face slice
+CONVERGE_CSV := reports/data/convergence.csv
+
+# The main job: references, the convergence study, the benches, the report.
+report: build $(if $(wildcard refs/refs.mk),refs) $(CONVERGE_CSV) bench-report
+	$(CARGO) run --release -- report
+
+# Re-run the study when the solver, a case or a reference changed.
+$(CONVERGE_CSV): target/release/xfem-cut $(foreach c,$(REPORT_CASES),cases/$(c).toml refs/out/$(c)/manifest.json)
+	$(CARGO) run --release -- converge $(foreach c,$(REPORT_CASES),cases/$(c).toml) --csv $@
+
+bench-report: build
+	$(CARGO) bench --bench step -- --warm-up-time 1 --measurement-time 3
 
 clean:
 	rm -rf target out
