@@ -351,7 +351,16 @@ fn ten_thousand_corotational_steps_of_the_cut_bend_beam_stay_bounded() {
     assert_eq!(r.timings.steps, 10_000);
     assert!(r.d.iter().all(|x| x.is_finite()));
     // After the ramp no work enters; with Rayleigh damping the energy must not grow.
-    let after: Vec<f64> = r.energies.iter().filter(|(t, _)| *t >= 1.0).map(|(_, e)| e.kinetic + e.strain).collect();
+    let after: Vec<f64> = r
+        .energies
+        .iter()
+        .filter(|(t, _)| *t >= 1.0)
+        .map(|(_, e)| e.kinetic + e.strain)
+        .collect();
     let max = after.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    assert!(max <= after[0] * (1.0 + 1e-6), "energy grew from {} to {max}", after[0]);
+    assert!(
+        max <= after[0] * (1.0 + 1e-6),
+        "energy grew from {} to {max}",
+        after[0]
+    );
 }
