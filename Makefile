@@ -25,14 +25,20 @@ bench: build
 
 REPORT_CASES := gravity stretch bend stretch_face bend_face slice
 CONVERGE_CSV := reports/data/convergence.csv
+STRESS_CSV := reports/data/stress.csv
 
 # The main job: references, the convergence study, the benches, the report.
-report: build $(if $(wildcard refs/refs.mk),refs) $(CONVERGE_CSV) bench-report
+report: build $(if $(wildcard refs/refs.mk),refs) $(CONVERGE_CSV) $(STRESS_CSV) bench-report
 	$(CARGO) run --release -- report
 
 # Re-run the study when the solver, a case or a reference changed.
 $(CONVERGE_CSV): target/release/xfem-cut $(foreach c,$(REPORT_CASES),cases/$(c).toml refs/out/$(c)/manifest.json)
 	$(CARGO) run --release -- converge $(foreach c,$(REPORT_CASES),cases/$(c).toml) --csv $@
+
+# The stress suite: re-run when the solver changed.
+$(STRESS_CSV): target/release/xfem-cut
+	@mkdir -p $(dir $@)
+	$(CARGO) run --release -- stress --csv $@ || echo "stress: a test failed; the report shows which"
 
 bench-report: build
 	$(CARGO) bench --bench step -- --warm-up-time 1 --measurement-time 3

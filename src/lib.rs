@@ -31,4 +31,5 @@ pub mod run;
 pub mod scene;
 pub mod solve;
 pub mod statics;
+pub mod stress;
 pub mod verify;

@@ -46,6 +46,17 @@ enum Command {
         #[arg(long, default_value_t = 250_000)]
         max_dofs: usize,
     },
+    /// The stability stress suite: cuts near nodes, ν → 0.5, dt sweep, 10⁴ undamped steps,
+    /// a freed fragment falling and tumbling, 90°/180° twists, inverted elements.
+    /// Each row has a pass/fail criterion; exits non-zero if one fails.
+    Stress {
+        #[arg(long, default_value = "reports/data/stress.csv")]
+        csv: PathBuf,
+        /// Run only the families whose name contains this (near-node, poisson, dt, long,
+        /// fragment, rotation, inverted); the CSV is then not written.
+        #[arg(long, default_value = "")]
+        only: String,
+    },
     /// (Re)write reports/README.md and its plots from the CSVs, the FEniCSx manifests and criterion's estimates.
     Report {
         #[arg(long, default_value = "reports")]
@@ -135,6 +146,33 @@ fn run() -> Result<()> {
             }
             bar.finish_and_clear();
             println!("wrote {}", csv.display());
+            Ok(())
+        }
+        Command::Stress { csv, only } => {
+            if let Some(dir) = csv.parent().filter(|d| !d.as_os_str().is_empty()) {
+                std::fs::create_dir_all(dir)
+                    .with_context(|| format!("creating {}", dir.display()))?;
+            }
+            let rows = xfem_cut::stress::run_suite(&only, |r| {
+                println!(
+                    "{} {} | {} | {} ({:.1} s)",
+                    if r.pass { "pass" } else { "FAIL" },
+                    r.test,
+                    r.setting,
+                    r.measured,
+                    r.seconds
+                )
+            });
+            if only.is_empty() {
+                xfem_cut::stress::write_csv(&csv, &rows)?;
+                println!("wrote {}", csv.display());
+            }
+            let failed = rows.iter().filter(|r| !r.pass).count();
+            anyhow::ensure!(
+                failed == 0,
+                "{failed} of {} stress tests failed",
+                rows.len()
+            );
             Ok(())
         }
         Command::Report { dir, criterion } => {

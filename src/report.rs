@@ -278,6 +278,35 @@ pub fn write_report(reports: &Path, criterion_dir: &Path, machine: &str) -> Resu
             let _ = writeln!(md, "| `{id}` | {:.3} ms |", ns * 1e-6);
         }
     }
+    match crate::stress::read_csv(&reports.join("data/stress.csv")) {
+        Ok(stress) => {
+            let passed = stress.iter().filter(|r| r.pass).count();
+            let _ = writeln!(
+                md,
+                "\n## Stability stress suite (`xfem-cut stress`): {passed} of {} pass\n\n| test | setting | measured | criterion | result | time (s) |\n| --- | --- | --- | --- | --- | --- |",
+                stress.len()
+            );
+            for r in &stress {
+                let _ = writeln!(
+                    md,
+                    "| {} | {} | {} | {} | {} | {:.1} |",
+                    r.test,
+                    r.setting,
+                    r.measured,
+                    r.criterion,
+                    if r.pass { "pass" } else { "**FAIL**" },
+                    r.seconds
+                );
+            }
+            let _ = writeln!(md, "\nκ: 2-norm condition estimates of the free system's tangent (30 power + 30 inverse iterations); the Jacobi-scaled one is what limits a direct solve's accuracy. Cuts close to nodes make κ(K) explode through enriched DOFs with tiny support while the scaled κ stays put: the Cholesky solve stays accurate, snapping (ε = 1e-4 h by default) removes the tiny supports for iterative solvers.");
+        }
+        Err(e) => {
+            let _ = writeln!(
+                md,
+                "\n## Stability stress suite\n\nNot run ({e}); `xfem-cut stress` writes it."
+            );
+        }
+    }
     let tmp = reports.join("README.md.tmp");
     std::fs::write(&tmp, md).map_err(|e| e.to_string())?;
     std::fs::rename(&tmp, reports.join("README.md")).map_err(|e| e.to_string())

@@ -56,10 +56,23 @@ pub struct StaticSolution {
 }
 
 /// Solves the static problem; `chol` holds the symbolic factorisation of the model's pattern.
+/// Loads and prescribed displacements grow in proportion over the load steps.
 pub fn solve_static(
     model: &Model,
     chol: &mut Cholesky,
     opts: &StaticOptions,
+) -> Result<StaticSolution, StaticError> {
+    solve_static_along(model, chol, opts, |lambda, p| lambda * p.value)
+}
+
+/// [`solve_static`] with the prescribed displacement of each DOF at load
+/// fraction λ given by `prescribed(λ, p)` (e.g. along an arc for a prescribed
+/// rotation, where the proportional chord would collapse the body half-way).
+pub fn solve_static_along(
+    model: &Model,
+    chol: &mut Cholesky,
+    opts: &StaticOptions,
+    prescribed: impl Fn(f64, &crate::model::Prescribed) -> f64,
 ) -> Result<StaticSolution, StaticError> {
     let n = model.n_dofs();
     let linear = model.formulation == Formulation::Linear;
@@ -77,7 +90,7 @@ pub fn solve_static(
     for step in 1..=steps {
         let lambda = step as f64 / steps as f64;
         for p in &model.prescribed {
-            d[p.dof] = lambda * p.value;
+            d[p.dof] = prescribed(lambda, p);
         }
         let mut it = 0;
         loop {
