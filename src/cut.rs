@@ -254,7 +254,13 @@ pub fn setup_cut(
         });
     }
 
-    // Enriched nodes.
+    // Enriched nodes: those of cut elements, except where the plane also
+    // crosses an element of the node's star outside the patch (ahead of the
+    // front). ψ is 0 there, so enriching the node would open a spurious crack
+    // along the faces between that element and the cut ones (the field is no
+    // longer conforming). Without them the opening fades to zero across the
+    // elements the front passes through, and X-FEM on unstructured meshes
+    // matches the remeshed FEM (gravity, Tet10: 31 % → 6.7 % at L0).
     let mut enrich = vec![false; n_nodes];
     for e in 0..mesh.n_elements() {
         if matches!(elements[e], ElementCut::Cut { .. }) {
@@ -263,6 +269,15 @@ pub fn setup_cut(
                     enrich[i] = true;
                 }
             }
+        }
+    }
+    for i in 0..n_nodes {
+        if enrich[i]
+            && star[i]
+                .iter()
+                .any(|&e| crossed[e] && !matches!(elements[e], ElementCut::Cut { .. }))
+        {
+            enrich[i] = false;
         }
     }
     for i in 0..n_nodes {
