@@ -21,7 +21,7 @@ test: build $(if $(wildcard refs/refs.mk),refs-test)
 	$(CARGO) test --release
 
 bench: build
-	$(CARGO) bench --bench step
+	$(CARGO) bench --bench step --bench cut
 
 REPORT_CASES := gravity stretch bend stretch_face bend_face slice
 CONVERGE_CSV := reports/data/convergence.csv
@@ -41,7 +41,7 @@ $(STRESS_CSV): target/release/xfem-cut
 	$(CARGO) run --release -- stress --csv $@ || echo "stress: a test failed; the report shows which"
 
 bench-report: build
-	$(CARGO) bench --bench step -- --warm-up-time 1 --measurement-time 3
+	$(CARGO) bench --bench step --bench cut -- --warm-up-time 1 --measurement-time 3
 
 clean:
 	rm -rf target out

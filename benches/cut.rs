@@ -1,0 +1,171 @@
+//! Criterion benches of the cut: the precompute split stage by stage (mesh,
+//! cut set-up, element data + pattern, symbolic and numeric factorisation)
+//! for the seed's half-cut beam, and one Newmark step of the cut beam against
+//! the uncut one on the same mesh.
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use nalgebra::{Point3, Vector3};
+use std::hint::black_box;
+use xfem_cut::assembly::{evaluate, Request, Rotations, Workspace};
+use xfem_cut::cut::{setup_cut, CutSetup, PlanarPatch, DEFAULT_SNAP};
+use xfem_cut::dynamics::{DynamicOptions, LinearSolver, Newmark};
+use xfem_cut::material::Material;
+use xfem_cut::mesh::{box_mesh, TetMesh};
+use xfem_cut::model::{Formulation, Model, ModelInput};
+use xfem_cut::solve::Cholesky;
+
+const MAT: Material = Material {
+    young: 3.0e5,
+    poisson: 0.35,
+    density: 1070.0,
+};
+
+/// The seed's cut: from the face x = 0 through half the thickness at z = 0.1.
+fn seed_patch() -> PlanarPatch {
+    PlanarPatch {
+        origin: Point3::new(0.0, 0.0, 0.1),
+        u: Vector3::new(0.015, 0.0, 0.0),
+        v: Vector3::new(0.0, 0.06, 0.0),
+    }
+}
+
+fn beam(div: [usize; 3], tet10: bool) -> TetMesh {
+    let m = box_mesh(Point3::origin(), Point3::new(0.03, 0.06, 0.2), div);
+    if tet10 {
+        m.to_tet10()
+    } else {
+        m
+    }
+}
+
+fn cut_of(mesh: &TetMesh) -> CutSetup {
+    setup_cut(mesh, &[&seed_patch()], DEFAULT_SNAP).unwrap()
+}
+
+/// Bottom clamped, gravity in +x (the seed's `gravity` scene).
+fn model(mesh: TetMesh, cut: Option<CutSetup>, formulation: Formulation) -> Model {
+    let fixed = mesh
+        .nodes
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.z.abs() < 1e-12)
+        .map(|(i, _)| (i, [Some(0.0); 3]))
+        .collect();
+    Model::build(ModelInput {
+        mesh,
+        material: MAT,
+        formulation,
+        cut,
+        fixed,
+        gravity: Some(Vector3::new(9.81, 0.0, 0.0)),
+        body_force: None,
+        tractions: &[],
+        need_mass: true,
+    })
+    .unwrap()
+}
+
+/// The tangent at a small deformation (values on the model's pattern).
+fn tangent(m: &Model) -> Vec<f64> {
+    let d = vec![1e-4; m.n_dofs()];
+    let mut k = vec![0.0; m.pattern.nnz()];
+    evaluate(
+        m,
+        &d,
+        &mut Rotations::identity(m),
+        &mut Workspace::new(m),
+        Request {
+            forces: None,
+            tangent: Some(&mut k),
+            update_rotations: true,
+        },
+    );
+    k
+}
+
+const SIZES: [(&str, [usize; 3], bool); 3] = [
+    ("1k", [3, 6, 10], false),
+    ("10k", [6, 12, 24], false),
+    ("1k", [3, 6, 10], true),
+];
+
+fn kind(tet10: bool) -> &'static str {
+    if tet10 {
+        "tet10"
+    } else {
+        "tet4"
+    }
+}
+
+fn precompute_split(c: &mut Criterion) {
+    let mut g = c.benchmark_group("precompute-split");
+    g.sample_size(10);
+    for (label, div, tet10) in SIZES {
+        let k = kind(tet10);
+        let mesh = beam(div, tet10);
+        let cut = cut_of(&mesh);
+        let m = model(mesh.clone(), Some(cut.clone()), Formulation::Corotational);
+        let values = tangent(&m);
+        let id = |stage: &str| BenchmarkId::new(format!("{stage}/{k}"), label);
+        g.bench_function(id("mesh"), |b| b.iter(|| black_box(beam(div, tet10))));
+        g.bench_function(id("cut-setup"), |b| b.iter(|| black_box(cut_of(&mesh))));
+        g.bench_function(id("element-data"), |b| {
+            b.iter(|| {
+                black_box(model(
+                    mesh.clone(),
+                    Some(cut.clone()),
+                    Formulation::Corotational,
+                ))
+            })
+        });
+        g.bench_function(id("symbolic"), |b| {
+            b.iter(|| black_box(Cholesky::new(&m.pattern).unwrap()))
+        });
+        let mut chol = Cholesky::new(&m.pattern).unwrap();
+        g.bench_function(id("numeric"), |b| {
+            b.iter(|| chol.factorize(black_box(&values)).unwrap())
+        });
+    }
+    g.finish();
+}
+
+fn cut_step(c: &mut Criterion) {
+    let mut g = c.benchmark_group("cut-step");
+    g.sample_size(10);
+    for (label, div, tet10) in SIZES {
+        let k = kind(tet10);
+        for formulation in [Formulation::Linear, Formulation::Corotational] {
+            let f = if formulation == Formulation::Linear {
+                "linear"
+            } else {
+                "corotational"
+            };
+            for with_cut in [false, true] {
+                let mesh = beam(div, tet10);
+                let cut = with_cut.then(|| cut_of(&mesh));
+                let m = model(mesh, cut, formulation);
+                let opts = DynamicOptions {
+                    dt: 0.01,
+                    steps: 1,
+                    max_iterations: 1,
+                    linear_solver: LinearSolver::Direct,
+                    ..DynamicOptions::default()
+                };
+                let mut nm = Newmark::new(&m, Cholesky::new(&m.pattern).unwrap(), opts).unwrap();
+                nm.step().unwrap();
+                let name = format!(
+                    "{f}-{}/{k}/{}tets",
+                    if with_cut { "cut" } else { "uncut" },
+                    m.mesh.n_elements()
+                );
+                g.bench_function(BenchmarkId::new(name, label), |b| {
+                    b.iter(|| black_box(nm.step().unwrap()))
+                });
+            }
+        }
+    }
+    g.finish();
+}
+
+criterion_group!(cut, precompute_split, cut_step);
+criterion_main!(cut);
