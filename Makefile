@@ -33,7 +33,7 @@ report: build $(if $(wildcard refs/refs.mk),refs) $(CONVERGE_CSV) $(STRESS_CSV) 
 
 # Re-run the study when the solver, a case or a reference changed.
 $(CONVERGE_CSV): target/release/xfem-cut $(foreach c,$(REPORT_CASES),cases/$(c).toml refs/out/$(c)/manifest.json)
-	$(CARGO) run --release -- converge $(foreach c,$(REPORT_CASES),cases/$(c).toml) --csv $@
+	$(CARGO) run --release -- converge $(foreach c,$(REPORT_CASES),cases/$(c).toml) --csv $@ --max-dofs 120000
 
 # The stress suite: re-run when the solver changed.
 $(STRESS_CSV): target/release/xfem-cut
