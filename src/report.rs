@@ -163,6 +163,33 @@ pub fn write_report(reports: &Path, criterion_dir: &Path, machine: &str) -> Resu
     cases.dedup();
     cases.sort();
     cases.dedup();
+    // One table over all cases first: what a reader asks before the details.
+    let _ = writeln!(md, "## Summary\n\n| case | variant | element | levels | observed order | finest error | fastest run with error ≤ 1 % |\n| --- | --- | --- | --- | --- | --- | --- |");
+    for case in &cases {
+        for ((variant, element), rs) in &series(&rows, case) {
+            let fastest = rs
+                .iter()
+                .filter(|r| r.l2 <= 0.01)
+                .min_by(|a, b| (a.precompute + a.solve).total_cmp(&(b.precompute + b.solve)))
+                .map_or("–".into(), |r| {
+                    format!(
+                        "L{} ({} DOFs): {:.1} ms",
+                        r.level,
+                        r.dofs,
+                        (r.precompute + r.solve) * 1e3
+                    )
+                });
+            let _ = writeln!(
+                md,
+                "| `{case}` | {variant} | {element} | {} | {} | {} | {fastest} |",
+                rs.len(),
+                order(rs).map_or("–".into(), |p| format!("{p:.2}")),
+                rs.last()
+                    .map_or("–".into(), |r| format!("{:.2} %", r.l2 * 100.0))
+            );
+        }
+    }
+    md.push('\n');
     for case in &cases {
         let s = series(&rows, case);
         let _ = writeln!(md, "## `{case}`\n");
@@ -269,6 +296,9 @@ pub fn write_report(reports: &Path, criterion_dir: &Path, machine: &str) -> Resu
         md.push('\n');
     }
     let benches = criterion_medians(criterion_dir);
+    if let Some(table) = cut_cost(&benches) {
+        md.push_str(&table);
+    }
     if !benches.is_empty() {
         let _ = writeln!(
             md,
@@ -310,6 +340,61 @@ pub fn write_report(reports: &Path, criterion_dir: &Path, machine: &str) -> Resu
     let tmp = reports.join("README.md.tmp");
     std::fs::write(&tmp, md).map_err(|e| e.to_string())?;
     std::fs::rename(&tmp, reports.join("README.md")).map_err(|e| e.to_string())
+}
+
+/// The median (ns) of the benchmark of `group` whose id holds every part
+/// (criterion turns the `/` inside function names into `_` on disk).
+fn median(benches: &[(String, f64)], group: &str, parts: &[&str]) -> Option<f64> {
+    benches
+        .iter()
+        .find(|(id, _)| {
+            let id = id.replace('_', "/");
+            let segments: Vec<&str> = id.split('/').collect();
+            segments.first() == Some(&group) && parts.iter().all(|p| segments.contains(p))
+        })
+        .map(|(_, ns)| *ns)
+}
+
+/// The cut's cost from the `cut` bench: each precompute stage, the cut
+/// set-up's share of it, and a step with the cut against one without on the same mesh.
+fn cut_cost(benches: &[(String, f64)]) -> Option<String> {
+    let mut md = String::from("## What the cut costs (criterion medians, bench `cut`)\n\nThe seed's half-cut beam, bottom clamped, gravity. Precompute = mesh + cut set-up (level set, classification, sub-tets, enrichment map) + element data and pattern + symbolic factorisation; the numeric factorisation is paid per step in corotational runs.\n\n| size | element | mesh (ms) | cut set-up (ms) | element data (ms) | symbolic (ms) | numeric (ms) | cut set-up / precompute | linear step cut / uncut (ms) | corotational step cut / uncut (ms) |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
+    let mut any = false;
+    for (label, kind) in [("1k", "tet4"), ("10k", "tet4"), ("1k", "tet10")] {
+        let stage = |s: &str| median(benches, "precompute-split", &[s, kind, label]);
+        let (Some(mesh), Some(cut), Some(data), Some(sym), Some(num)) = (
+            stage("mesh"),
+            stage("cut-setup"),
+            stage("element-data"),
+            stage("symbolic"),
+            stage("numeric"),
+        ) else {
+            continue;
+        };
+        let step = |f: &str| -> String {
+            let cut = median(benches, "cut-step", &[&format!("{f}-cut"), kind, label]);
+            let uncut = median(benches, "cut-step", &[&format!("{f}-uncut"), kind, label]);
+            match (cut, uncut) {
+                (Some(c), Some(u)) => format!("{:.3} / {:.3} = {:.2}×", c * 1e-6, u * 1e-6, c / u),
+                _ => "–".into(),
+            }
+        };
+        any = true;
+        let _ = writeln!(
+            md,
+            "| {label} | {kind} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.1} % | {} | {} |",
+            mesh * 1e-6,
+            cut * 1e-6,
+            data * 1e-6,
+            sym * 1e-6,
+            num * 1e-6,
+            100.0 * cut / (mesh + cut + data + sym),
+            step("linear"),
+            step("corotational")
+        );
+    }
+    md.push('\n');
+    any.then_some(md)
 }
 
 fn reference_family(case: &str) -> String {
