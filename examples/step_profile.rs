@@ -2,7 +2,7 @@
 //! Profiles corotational Newmark steps on the seed beam (1k tets): `perf record` target.
 use nalgebra::{Point3, Vector3};
 use std::time::Instant;
-use xfem_cut::dynamics::{DynamicOptions, Newmark};
+use xfem_cut::dynamics::{DynamicOptions, LinearSolver, Newmark};
 use xfem_cut::material::Material;
 use xfem_cut::mesh::box_mesh;
 use xfem_cut::model::{Formulation, Model, ModelInput};
@@ -42,10 +42,19 @@ fn main() {
     })
     .unwrap();
     let chol = Cholesky::new(&m.pattern).unwrap();
+    // XFEM_PCG=<max CG iterations> uses CG preconditioned by the last factorisation.
+    let linear_solver = match std::env::var("XFEM_PCG").ok().and_then(|s| s.parse().ok()) {
+        Some(max_cg) => LinearSolver::Pcg {
+            tolerance: 1e-8,
+            max_cg,
+        },
+        None => LinearSolver::Direct,
+    };
     let opts = DynamicOptions {
         dt: 0.01,
         steps: 1,
         max_iterations: 1,
+        linear_solver,
         ..DynamicOptions::default()
     };
     let mut nm = Newmark::new(&m, chol, opts).unwrap();
@@ -55,8 +64,10 @@ fn main() {
         nm.step().unwrap();
     }
     println!(
-        "{} tets: {:.3} ms/step",
+        "{} tets: {:.3} ms/step, {} factorisations, {} CG iterations in {n} steps",
         m.mesh.n_elements(),
-        t.elapsed().as_secs_f64() * 1e3 / n as f64
+        t.elapsed().as_secs_f64() * 1e3 / n as f64,
+        nm.factorisations(),
+        nm.cg_iterations()
     );
 }
