@@ -30,7 +30,7 @@ SETS = {
 VENV_PY = str(ROOT / ".venv" / "bin" / "python")
 # Corotational references (scikit-fem): (case, family, level, degree). Newton with the R K R^T
 # tangent converges linearly, so these are few and coarse.
-COROT = [("stretch_face", "beam_crack", "L0", 1)]
+COROT = [("stretch_face", "beam_crack", "L0", 1), ("bend_face", "beam_crack", "L0", 1)]
 
 
 def tool_versions() -> str:

@@ -65,24 +65,27 @@ fn linear_solves_on_precut_meshes_equal_fenicsx() {
 fn corotational_solve_equals_scikit_fem() {
     let cases_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
     let msh = out_dir().join("meshes/beam_crack/L0.msh");
-    let vtu = out_dir().join("stretch_face/beam_crack_L0/corot_p1.vtu");
     need(&msh);
-    need(&vtu);
-    let mut scene = Scene::load(&cases_dir.join("stretch_face.toml")).unwrap();
-    scene.cuts.clear();
-    scene.formulation = xfem_cut::model::Formulation::Corotational;
-    // The reference's path: 20 load steps, Newton to 1e-11 with backtracking.
-    scene.analysis = xfem_cut::scene::Analysis::Static(xfem_cut::statics::StaticOptions {
-        load_steps: 20,
-        tolerance: 1e-11,
-        max_iterations: 300,
-    });
-    let ours = solve_scene(&scene, 0, Some(&msh), false).unwrap();
-    let reference = read_reference(&vtu).unwrap();
-    let diff = same_mesh_difference(&ours.model.mesh, &ours.d, &reference).unwrap();
-    println!(
-        "stretch_face L0 corotational Tet4 vs scikit-fem: {diff:.2e}, Newton iterations {:?}",
-        ours.iterations
-    );
-    assert!(diff <= 1e-8, "differs from scikit-fem by {diff:e}");
+    // The large-deformation cases, on the pre-cut L0 mesh, Tet4 against P1.
+    for case in ["stretch_face", "bend_face"] {
+        let vtu = out_dir().join(format!("{case}/beam_crack_L0/corot_p1.vtu"));
+        need(&vtu);
+        let mut scene = Scene::load(&cases_dir.join(format!("{case}.toml"))).unwrap();
+        scene.cuts.clear();
+        scene.formulation = xfem_cut::model::Formulation::Corotational;
+        // The reference's path: 20 load steps, Newton to 1e-11 with backtracking.
+        scene.analysis = xfem_cut::scene::Analysis::Static(xfem_cut::statics::StaticOptions {
+            load_steps: 20,
+            tolerance: 1e-11,
+            max_iterations: 300,
+        });
+        let ours = solve_scene(&scene, 0, Some(&msh), false).unwrap();
+        let reference = read_reference(&vtu).unwrap();
+        let diff = same_mesh_difference(&ours.model.mesh, &ours.d, &reference).unwrap();
+        println!(
+            "{case} L0 corotational Tet4 vs scikit-fem: {diff:.2e}, Newton iterations {:?}",
+            ours.iterations
+        );
+        assert!(diff <= 1e-8, "{case}: differs from scikit-fem by {diff:e}");
+    }
 }
