@@ -6,12 +6,14 @@
 //! X-FEM on the structured box levels of the case and on the unstructured
 //! uncut gmsh meshes, each with Tet4 and Tet10.
 
+use crate::cut::{CutSurface, PlanarPatch};
 use crate::locate::Locator;
 use crate::mesh::ElementKind;
 use crate::reference::{out_dir, read_reference};
-use crate::run::solve_scene;
+use crate::run::{evaluate_at, solve_scene};
 use crate::scene::{BodyGeometry, Scene};
 use crate::verify::{l2_error, Field};
+use nalgebra::{Point3, Vector3};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -32,15 +34,20 @@ pub struct Row {
     /// Numeric factorisation and solve (s).
     pub solve: f64,
     pub l2: f64,
+    /// Relative error of the crack opening [u] = u(+) − u(−) sampled on the
+    /// cut patch (NaN without a cut).
+    pub opening: f64,
+    /// Largest probe error relative to the largest probe displacement (NaN without probes).
+    pub probes: f64,
 }
 
 pub const CSV_HEADER: &str =
-    "case,variant,element,level,h,elements,dofs,precompute_s,solve_s,l2_rel";
+    "case,variant,element,level,h,elements,dofs,precompute_s,solve_s,l2_rel,opening_rel,probe_rel";
 
 impl Row {
     pub fn csv(&self) -> String {
         format!(
-            "{},{},{},{},{:e},{},{},{:e},{:e},{:e}",
+            "{},{},{},{},{:e},{},{},{:e},{:e},{:e},{:e},{:e}",
             self.case,
             self.variant,
             self.element,
@@ -50,15 +57,19 @@ impl Row {
             self.dofs,
             self.precompute,
             self.solve,
-            self.l2
+            self.l2,
+            self.opening,
+            self.probes
         )
     }
 
     pub fn parse(line: &str) -> Option<Row> {
         let f: Vec<&str> = line.split(',').collect();
-        if f.len() != 10 {
+        // Rows of the first layout (10 fields) had no opening and probe errors.
+        if f.len() != 10 && f.len() != 12 {
             return None;
         }
+        let extra = |k: usize| f.get(k).map_or(Some(f64::NAN), |v| v.parse().ok());
         Some(Row {
             case: f[0].to_string(),
             variant: f[1].to_string(),
@@ -70,6 +81,8 @@ impl Row {
             precompute: f[7].parse().ok()?,
             solve: f[8].parse().ok()?,
             l2: f[9].parse().ok()?,
+            opening: extra(10)?,
+            probes: extra(11)?,
         })
     }
 }
@@ -119,6 +132,47 @@ pub fn converge_case(
         values: &reference.u,
     };
     let mut rows = Vec::new();
+    let ref_locator = Locator::new(&reference.mesh);
+    let ref_at = |x: &Point3<f64>| {
+        ref_locator
+            .locate(&reference.mesh, x)
+            .map(|(e, l)| field.at(e, &l))
+    };
+    // Points on the crack (inside the body), the side offset and the reference jumps there.
+    let patch = base.cuts.first().map(|c| PlanarPatch {
+        origin: c.origin,
+        u: c.u,
+        v: c.v,
+    });
+    let offset = patch
+        .as_ref()
+        .map_or(Vector3::zeros(), |p| p.normal() * SIDE_OFFSET);
+    let mut crack: Vec<(Point3<f64>, Vector3<f64>)> = Vec::new();
+    if let Some(p) = &patch {
+        let (ns, nt) = (12, 24);
+        for i in 0..ns {
+            for j in 0..nt {
+                let x = p.origin
+                    + p.u * ((i as f64 + 0.5) / ns as f64)
+                    + p.v * ((j as f64 + 0.5) / nt as f64);
+                if let (Some(a), Some(b)) = (ref_at(&(x + offset)), ref_at(&(x - offset))) {
+                    crack.push((x, a - b));
+                }
+            }
+        }
+    }
+    // Probes on the cut are read on its + side (as `run` does).
+    let probes: Vec<(Point3<f64>, Vector3<f64>)> = base
+        .probes
+        .iter()
+        .filter_map(|x| {
+            let on_cut = patch
+                .as_ref()
+                .is_some_and(|p| p.level_set(x).abs() < 1e-12 && p.contains(x, 1e-9));
+            let x = if on_cut { x + offset } else { *x };
+            ref_at(&x).map(|u| (x, u))
+        })
+        .collect();
 
     // (variant, element, level, mesh override, keep the cut)
     let mut runs: Vec<(String, ElementKind, usize, Option<PathBuf>, bool)> = Vec::new();
@@ -171,6 +225,21 @@ pub fn converge_case(
         let locator = Locator::new(&result.model.mesh);
         let err = l2_error(&field, &result.model, &result.d, &locator)
             .map_err(|e| format!("{}: {variant} L{level}: {e}", base.name))?;
+        let ours = |x: &Point3<f64>| evaluate_at(&result.model, &locator, &result.d, x);
+        let opening = relative_error(crack.iter().map(|(x, jump)| {
+            let mine = ours(&(x + offset))
+                .zip(ours(&(x - offset)))
+                .map(|(a, b)| a - b);
+            (mine, *jump)
+        }));
+        let probe_error = {
+            let scale = probes.iter().map(|(_, u)| u.norm()).fold(0.0, f64::max);
+            probes
+                .iter()
+                .map(|(x, u)| ours(x).map_or(f64::INFINITY, |v| (v - u).norm()))
+                .fold(f64::NAN, f64::max)
+                / scale
+        };
         let mesh_ref = &result.model.mesh;
         let volume: f64 = (0..mesh_ref.n_elements()).map(|e| mesh_ref.volume(e)).sum();
         let row = Row {
@@ -184,15 +253,19 @@ pub fn converge_case(
             precompute,
             solve: t.solve,
             l2: err.relative,
+            opening,
+            probes: probe_error,
         };
         progress(&format!(
-            "{} {} {} L{}: {} DOFs, L2 {:.3e}, precompute {:.1} ms, solve {:.1} ms ({:.1} s)",
+            "{} {} {} L{}: {} DOFs, L2 {:.3e}, opening {:.3e}, probes {:.3e}, precompute {:.1} ms, solve {:.1} ms ({:.1} s)",
             row.case,
             row.variant,
             row.element,
             row.level,
             row.dofs,
             row.l2,
+            row.opening,
+            row.probes,
             row.precompute * 1e3,
             row.solve * 1e3,
             wall
@@ -200,6 +273,26 @@ pub fn converge_case(
         rows.push(row);
     }
     Ok(rows)
+}
+
+/// Offset from the cut plane at which each side is read (m): far beyond the
+/// locator's tolerance, far below any element size.
+const SIDE_OFFSET: f64 = 1e-8;
+
+/// sqrt(Σ|ours − ref|²) / sqrt(Σ|ref|²) over the pairs (a missing value of
+/// ours counts as an infinite error); NaN when there are none.
+fn relative_error(pairs: impl Iterator<Item = (Option<Vector3<f64>>, Vector3<f64>)>) -> f64 {
+    let (mut num, mut den, mut n) = (0.0, 0.0, 0);
+    for (mine, want) in pairs {
+        num += mine.map_or(f64::INFINITY, |m| (m - want).norm_squared());
+        den += want.norm_squared();
+        n += 1;
+    }
+    if n == 0 {
+        f64::NAN
+    } else {
+        (num / den).sqrt()
+    }
 }
 
 /// Writes rows as CSV (whole or not at all).
@@ -221,4 +314,30 @@ pub fn write_csv(path: &Path, rows: &[Row]) -> std::io::Result<()> {
 pub fn read_csv(path: &Path) -> std::io::Result<Vec<Row>> {
     let text = std::fs::read_to_string(path)?;
     Ok(text.lines().skip(1).filter_map(Row::parse).collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rows_round_trip_and_old_rows_read_without_the_new_errors() {
+        let line = "gravity,X-FEM unstructured,tet10,2,3e-3,100,300,1e-2,2e-2,5e-3,4e-2,6e-3";
+        let r = Row::parse(line).unwrap();
+        assert_eq!((r.opening, r.probes), (4e-2, 6e-3));
+        assert_eq!(Row::parse(&r.csv()).unwrap().csv(), r.csv());
+        let old = Row::parse("gravity,FEM pre-cut,tet4,0,3e-3,100,300,1e-2,2e-2,5e-3").unwrap();
+        assert!(old.opening.is_nan() && old.probes.is_nan());
+        assert!(Row::parse("gravity,FEM pre-cut,tet4").is_none());
+    }
+
+    #[test]
+    fn relative_error_is_the_discrete_l2_ratio() {
+        let x = Vector3::new(3.0, 0.0, 4.0);
+        let pairs = [(Some(x * 1.1), x), (Some(x), x)];
+        let e = relative_error(pairs.into_iter());
+        assert!((e - (0.25f64 / 50.0).sqrt()).abs() < 1e-15);
+        assert!(relative_error(std::iter::empty()).is_nan());
+        assert!(relative_error([(None, x)].into_iter()).is_infinite());
+    }
 }
