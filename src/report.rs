@@ -357,10 +357,30 @@ fn median(benches: &[(String, f64)], group: &str, parts: &[&str]) -> Option<f64>
         .map(|(_, ns)| *ns)
 }
 
+/// "tets (cut elements)" from the cut step's id (`…/1188tets-54cut`).
+fn cut_counts(benches: &[(String, f64)], kind: &str, label: &str) -> String {
+    benches
+        .iter()
+        .filter_map(|(id, _)| {
+            let id = id.replace('_', "/");
+            let segments: Vec<&str> = id.split('/').collect();
+            let matches = segments.first() == Some(&"cut-step")
+                && [kind, label, "linear-cut"]
+                    .iter()
+                    .all(|p| segments.contains(p));
+            let (tets, cut) = segments
+                .iter()
+                .find_map(|s| s.strip_suffix("cut")?.split_once("tets-"))?;
+            matches.then(|| format!("{tets} ({cut})"))
+        })
+        .next()
+        .unwrap_or_else(|| "–".into())
+}
+
 /// The cut's cost from the `cut` bench: each precompute stage, the cut
 /// set-up's share of it, and a step with the cut against one without on the same mesh.
 fn cut_cost(benches: &[(String, f64)]) -> Option<String> {
-    let mut md = String::from("## What the cut costs (criterion medians, bench `cut`)\n\nThe seed's half-cut beam, bottom clamped, gravity. Precompute = mesh + cut set-up (level set, classification, sub-tets, enrichment map) + element data and pattern + symbolic factorisation; the numeric factorisation is paid per step in corotational runs.\n\n| size | element | mesh (ms) | cut set-up (ms) | element data (ms) | symbolic (ms) | numeric (ms) | cut set-up / precompute | linear step cut / uncut (ms) | corotational step cut / uncut (ms) |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
+    let mut md = String::from("## What the cut costs (criterion medians, bench `cut`)\n\nThe seed's half-cut beam, bottom clamped, gravity. Precompute = mesh + cut set-up (level set, classification, sub-tets, enrichment map) + element data and pattern + symbolic factorisation; the numeric factorisation is paid per step in corotational runs.\n\n| size | element | tets (cut) | mesh (ms) | cut set-up (ms) | element data (ms) | symbolic (ms) | numeric (ms) | cut set-up / precompute | linear step cut / uncut (ms) | corotational step cut / uncut (ms) |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
     let mut any = false;
     for (label, kind) in [("1k", "tet4"), ("10k", "tet4"), ("1k", "tet10")] {
         let stage = |s: &str| median(benches, "precompute-split", &[s, kind, label]);
@@ -384,7 +404,8 @@ fn cut_cost(benches: &[(String, f64)]) -> Option<String> {
         any = true;
         let _ = writeln!(
             md,
-            "| {label} | {kind} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.1} % | {} | {} |",
+            "| {label} | {kind} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.1} % | {} | {} |",
+            cut_counts(benches, kind, label),
             mesh * 1e-6,
             cut * 1e-6,
             data * 1e-6,

@@ -66,9 +66,15 @@ fn corotational_solve_equals_scikit_fem() {
     let cases_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
     let msh = out_dir().join("meshes/beam_crack/L0.msh");
     need(&msh);
-    // The large-deformation cases on the pre-cut L0 mesh, Tet4 against P1, on
-    // the reference's load path (steps, scale, tolerance from its json).
-    for (case, degree) in [("stretch_face", 1), ("bend_face", 1)] {
+    // The large-deformation cases on the pre-cut L0 mesh, Tet4 against P1 and
+    // Tet10 against P2, on the reference's load path (steps, scale, tolerance
+    // from its json).
+    for (case, degree) in [
+        ("stretch_face", 1),
+        ("bend_face", 1),
+        ("stretch_face", 2),
+        ("bend_face", 2),
+    ] {
         let vtu = out_dir().join(format!("{case}/beam_crack_L0/corot_p{degree}.vtu"));
         need(&vtu);
         let info: serde_json::Value =
