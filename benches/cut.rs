@@ -80,6 +80,7 @@ fn tangent(m: &Model) -> Vec<f64> {
             forces: None,
             tangent: Some(&mut k),
             update_rotations: true,
+            exact_tangent: false,
         },
     );
     k

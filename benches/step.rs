@@ -144,6 +144,7 @@ fn benches(c: &mut Criterion) {
                             forces: Some(&mut f),
                             tangent: Some(&mut k),
                             update_rotations: true,
+                            exact_tangent: false,
                         },
                     ))
                 })

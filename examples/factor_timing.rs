@@ -56,6 +56,7 @@ fn main() {
                 forces: Some(&mut f),
                 tangent: Some(&mut k),
                 update_rotations: true,
+                exact_tangent: false,
             },
         );
         let ta = t.elapsed();

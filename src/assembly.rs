@@ -22,6 +22,7 @@ impl Rotations {
 pub struct Workspace {
     rotated: Vec<Vector3<f64>>,
     disp: Vec<Vector3<f64>>,
+    cross: Vec<[Vector3<f64>; 3]>,
 }
 
 impl Workspace {
@@ -35,6 +36,7 @@ impl Workspace {
         Workspace {
             rotated: vec![Vector3::zeros(); m],
             disp: vec![Vector3::zeros(); m],
+            cross: vec![[Vector3::zeros(); 3]; m],
         }
     }
 }
@@ -47,6 +49,9 @@ pub struct Request<'a> {
     pub tangent: Option<&'a mut [f64]>,
     /// Update the rotations from `d` (corotational); otherwise use those stored.
     pub update_rotations: bool,
+    /// Corotational: the exact tangent of the forces (rotation derivative
+    /// included; statics) instead of R K Rᵀ (the seed's; dynamics).
+    pub exact_tangent: bool,
 }
 
 /// One pass over all groups at displacement `d`: returns the strain energy.
@@ -100,7 +105,7 @@ pub fn evaluate(
                 // Each global lower entry is reached from exactly one of (a,b,i,j), (b,a,j,i).
                 let map = &model.scatter[el.scatter..el.scatter + 9 * m * m];
                 let n = 3 * m;
-                kernel.tangent_blocks(&mut ws.rotated[..m], |a, b, block| {
+                let mut add = |a: usize, b: usize, block: &Matrix3<f64>| {
                     for i in 0..3 {
                         for j in 0..3 {
                             let v = block[(i, j)];
@@ -116,7 +121,18 @@ pub fn evaluate(
                             }
                         }
                     }
-                });
+                };
+                let exact = req.exact_tangent
+                    && model.formulation == Formulation::Corotational
+                    && kernel.exact_tangent_blocks(
+                        &f,
+                        &mut ws.rotated[..m],
+                        &mut ws.cross[..m],
+                        &mut add,
+                    );
+                if !exact {
+                    kernel.tangent_blocks(&mut ws.rotated[..m], add);
+                }
             }
         }
     }

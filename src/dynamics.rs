@@ -178,6 +178,7 @@ impl<'m> Newmark<'m> {
                 forces: Some(&mut self.f_int),
                 tangent: None,
                 update_rotations: model.formulation == Formulation::Corotational,
+                exact_tangent: false,
             },
         );
         for i in 0..self.r_full.len() {
@@ -277,6 +278,7 @@ impl<'m> Newmark<'m> {
                 forces: None,
                 tangent: None,
                 update_rotations: self.model.formulation == Formulation::Corotational,
+                exact_tangent: false,
             },
         );
         let mut mv = std::mem::take(&mut self.mv);
@@ -346,6 +348,7 @@ impl<'m> Newmark<'m> {
                     forces: Some(&mut self.f_int),
                     tangent: need_tangent.then_some(&mut self.tangent[..]),
                     update_rotations: !linear,
+                    exact_tangent: false,
                 },
             );
             for i in 0..d.len() {

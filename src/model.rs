@@ -751,6 +751,68 @@ impl<'a> GroupKernel<'a> {
     }
 }
 
+impl GroupKernel<'_> {
+    /// The exact tangent of the corotational forces (the derivative of the
+    /// polar rotation included), block by block for b ≤ a, at deformation
+    /// gradient `f` whose polar rotation is `self.rotation`:
+    ///
+    /// K_ab[i][j] = w (2μ δ_ij ∇φ_a·∇φ_b + λ (R∇φ_a)_i (R∇φ_b)_j
+    ///              + (λ tr ε − 2μ) (R (v_jb × ∇φ_a))_i),
+    /// v_jb = (tr S I − S)⁻¹ (∇φ_b × Rᵀe_j), S = RᵀF,
+    ///
+    /// from dP = 2μ (dF − dR) + λ tr(RᵀdF) R + λ tr ε dR, dR = R W with
+    /// (tr S I − S) axial(W) = axial(RᵀdF − dFᵀR) (refs/README.md derives it).
+    /// R K Rᵀ drops the dR terms; they are the geometric stiffness that a
+    /// slender body in bending needs for Newton to converge. Returns false
+    /// (and adds nothing) where tr S I − S is singular (a degenerate element),
+    /// so the caller can use R K Rᵀ for the group.
+    pub fn exact_tangent_blocks(
+        &self,
+        f: &Matrix3<f64>,
+        rotated: &mut [Vector3<f64>],
+        v: &mut [[Vector3<f64>; 3]],
+        mut add: impl FnMut(usize, usize, &Matrix3<f64>),
+    ) -> bool {
+        let (lambda, mu, w) = (self.lame.lambda, self.lame.mu, self.weight);
+        let r = self.rotation;
+        let s = r.transpose() * f;
+        let s = (s + s.transpose()) * 0.5;
+        let tr = s.trace();
+        let z = Matrix3::identity() * tr - s;
+        let scale = tr.abs().max(1.0);
+        let Some(z_inv) = z
+            .try_inverse()
+            .filter(|_| z.determinant().abs() > 1e-10 * scale * scale * scale)
+        else {
+            return false;
+        };
+        let c = lambda * (tr - 3.0) - 2.0 * mu;
+        for (b, g) in self.grads.iter().enumerate() {
+            rotated[b] = r * g;
+            for j in 0..3 {
+                let rj = Vector3::new(r[(j, 0)], r[(j, 1)], r[(j, 2)]);
+                v[b][j] = z_inv * g.cross(&rj);
+            }
+        }
+        for a in 0..self.grads.len() {
+            let ga = self.grads[a];
+            for b in 0..=a {
+                let dot = 2.0 * mu * ga.dot(&self.grads[b]);
+                let mut block = rotated[a] * rotated[b].transpose() * lambda;
+                for j in 0..3 {
+                    let col = r * v[b][j].cross(&ga) * c;
+                    for i in 0..3 {
+                        block[(i, j)] += col[i];
+                    }
+                    block[(j, j)] += dot;
+                }
+                add(a, b, &(block * w));
+            }
+        }
+        true
+    }
+}
+
 /// Rotation of a group for the formulation (identity for linear).
 pub fn group_rotation(
     formulation: Formulation,

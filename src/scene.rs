@@ -902,8 +902,10 @@ impl Plan {
         add(
             "numeric factorisation every iteration",
             refactor,
-            if refactor {
+            if refactor && dynamic {
                 "tangent R K R^T changes"
+            } else if refactor {
+                "exact corotational tangent (rotation derivative included) changes"
             } else {
                 "constant matrix: factorised once"
             },

@@ -13,6 +13,11 @@ pub struct StaticOptions {
     /// Relative residual tolerance of Newton.
     pub tolerance: f64,
     pub max_iterations: usize,
+    /// Corotational Newton on the exact tangent (the rotation's derivative
+    /// included: quadratic convergence, and the geometric stiffness a slender
+    /// body in bending needs), falling back to R K Rᵀ where that tangent is
+    /// not positive definite; false: R K Rᵀ throughout (the seed's).
+    pub exact_tangent: bool,
 }
 
 impl Default for StaticOptions {
@@ -21,6 +26,7 @@ impl Default for StaticOptions {
             load_steps: 10,
             tolerance: 1e-10,
             max_iterations: 50,
+            exact_tangent: true,
         }
     }
 }
@@ -105,6 +111,7 @@ pub fn solve_static_along(
                     forces: Some(&mut f_int),
                     tangent: want_tangent.then_some(&mut tangent[..]),
                     update_rotations: !linear,
+                    exact_tangent: opts.exact_tangent,
                 },
             );
             let r_full: Vec<f64> = model
@@ -137,16 +144,42 @@ pub fn solve_static_along(
                 });
             }
             if want_tangent {
-                chol.factorize(&tangent)?;
+                if let Err(e) = chol.factorize(&tangent) {
+                    if linear || !opts.exact_tangent {
+                        return Err(e.into());
+                    }
+                    // Not positive definite away from a stable equilibrium
+                    // (compression, buckling): this iteration takes R K Rᵀ.
+                    evaluate(
+                        model,
+                        &d,
+                        &mut rot,
+                        &mut ws,
+                        Request {
+                            forces: None,
+                            tangent: Some(&mut tangent),
+                            update_rotations: false,
+                            exact_tangent: false,
+                        },
+                    );
+                    chol.factorize(&tangent)?;
+                }
             }
             chol.solve_in_place(&mut r_free);
             if linear {
                 scatter_free_add(model, &r_free, &mut d);
             } else {
-                // Backtracking on the residual norm: R K Rᵀ is not the exact
-                // tangent of the corotational forces, and far from the solution
-                // a full step can overshoot.
+                // Backtracking: far from the solution a full step can
+                // overshoot. The corotational forces derive from a potential,
+                // Π = strain energy − λ f·d, and the step is a descent direction
+                // for it (the tangent is positive definite), so a step is taken
+                // when it lowers Π, or the residual norm (near the solution Π's
+                // change is below its round-off). The residual norm alone is a
+                // poor merit: it is dominated by stiff modes, and on a slender
+                // beam in bending it rejected good steps.
                 let before = residual * scale;
+                let potential = |energy: f64, d: &[f64]| energy - lambda * dot(&model.load, d);
+                let before_potential = potential(energy, &d);
                 let start = d.clone();
                 let mut alpha = 1.0;
                 for _ in 0..8 {
@@ -156,7 +189,7 @@ pub fn solve_static_along(
                             d[dof] += alpha * r_free[eq as usize];
                         }
                     }
-                    evaluate(
+                    let trial_energy = evaluate(
                         model,
                         &d,
                         &mut rot,
@@ -165,6 +198,7 @@ pub fn solve_static_along(
                             forces: Some(&mut f_int),
                             tangent: None,
                             update_rotations: true,
+                            exact_tangent: false,
                         },
                     );
                     let trial: f64 = model
@@ -175,7 +209,7 @@ pub fn solve_static_along(
                         .map(|(dof, _)| (lambda * model.load[dof] - f_int[dof]).powi(2))
                         .sum::<f64>()
                         .sqrt();
-                    if trial < before {
+                    if trial < before || potential(trial_energy, &d) < before_potential {
                         break;
                     }
                     alpha *= 0.5;
@@ -196,6 +230,10 @@ pub fn solve_static_along(
         factorisations: chol.factorisations - factor_start,
         rotations: rot,
     })
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 pub fn norm(v: &[f64]) -> f64 {

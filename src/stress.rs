@@ -130,6 +130,7 @@ pub fn condition_estimate(model: &Model, d: &[f64]) -> Option<(f64, f64)> {
             forces: None,
             tangent: Some(&mut k),
             update_rotations: model.formulation == Formulation::Corotational,
+            exact_tangent: false,
         },
     );
     let mut chol = Cholesky::new(&model.pattern).ok()?;
@@ -990,6 +991,7 @@ mod tests {
                 forces: None,
                 tangent: Some(&mut k),
                 update_rotations: false,
+                exact_tangent: false,
             },
         );
         let n = m.n_free;

@@ -93,11 +93,13 @@ fn corotational_solve_equals_scikit_fem() {
             fix.displacement = fix.displacement.map(|u| u * scale);
         }
         scene.gravity = scene.gravity.map(|g| g * scale);
-        // The reference's path: its load steps, Newton to its tolerance with backtracking.
+        // The reference's path: its load steps, Newton (exact tangent, as the
+        // reference) to its tolerance with backtracking.
         scene.analysis = xfem_cut::scene::Analysis::Static(xfem_cut::statics::StaticOptions {
             load_steps: steps,
             tolerance,
             max_iterations: 300,
+            exact_tangent: true,
         });
         let ours = solve_scene(&scene, 0, Some(&msh), false).unwrap();
         let reference = read_reference(&vtu).unwrap();
