@@ -25,15 +25,22 @@ bench: build
 
 REPORT_CASES := gravity stretch bend stretch_face bend_face slice
 CONVERGE_CSV := reports/data/convergence.csv
+# The corotational study: the seed's gravity beam, the large-deformation face cases, the through cut.
+COROT_CASES := gravity stretch_face bend_face slice
+CONVERGE_COROT_CSV := reports/data/convergence_corot.csv
 STRESS_CSV := reports/data/stress.csv
 
 # The main job: references, the convergence study, the benches, the report.
-report: build $(if $(wildcard refs/refs.mk),refs) $(CONVERGE_CSV) $(STRESS_CSV) bench-report
+report: build $(if $(wildcard refs/refs.mk),refs) $(CONVERGE_CSV) $(CONVERGE_COROT_CSV) $(STRESS_CSV) bench-report
 	$(CARGO) run --release -- report
 
 # Re-run the study when the solver, a case or a reference changed.
 $(CONVERGE_CSV): target/release/xfem-cut $(foreach c,$(REPORT_CASES),cases/$(c).toml refs/out/$(c)/manifest.json)
 	$(CARGO) run --release -- converge $(foreach c,$(REPORT_CASES),cases/$(c).toml) --csv $@ --max-dofs 120000
+
+# Every variant corotational, against our corotational Tet10 FEM on the finest pre-cut level ≤ 120k DOFs.
+$(CONVERGE_COROT_CSV): target/release/xfem-cut $(foreach c,$(COROT_CASES),cases/$(c).toml refs/out/$(c)/manifest.json)
+	$(CARGO) run --release -- converge --corotational $(foreach c,$(COROT_CASES),cases/$(c).toml) --csv $@ --max-dofs 120000
 
 # The stress suite: re-run when the solver changed.
 $(STRESS_CSV): target/release/xfem-cut

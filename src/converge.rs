@@ -9,7 +9,8 @@
 use crate::cut::{CutSurface, PlanarPatch};
 use crate::locate::Locator;
 use crate::mesh::ElementKind;
-use crate::reference::{out_dir, read_reference};
+use crate::model::Formulation;
+use crate::reference::{out_dir, read_reference, Reference};
 use crate::run::{evaluate_at, solve_scene};
 use crate::scene::{BodyGeometry, Scene};
 use crate::verify::{l2_error, Field};
@@ -112,10 +113,65 @@ fn family_meshes(family: &str) -> Vec<PathBuf> {
         .collect()
 }
 
+/// The corotational reference of a case: our corotational Tet10 FEM solve
+/// on the finest pre-cut level whose DOFs fit `max_dofs` (the solver is
+/// tested equal to scikit-fem's on L0 to 1e-14). Returns it and its level.
+fn corotational_reference(
+    base: &Scene,
+    family: &str,
+    max_dofs: usize,
+    progress: &mut impl FnMut(&str),
+) -> Result<(Reference, usize), String> {
+    let meshes = family_meshes(family);
+    let mut chosen = None;
+    for (k, path) in meshes.iter().enumerate() {
+        let m = base.read_mesh(path).map_err(|e| e.to_string())?;
+        if 3 * m.to_tet10().n_nodes() <= max_dofs {
+            chosen = Some(k);
+        }
+    }
+    let level = chosen.filter(|&k| k >= 2).ok_or_else(|| {
+        format!(
+            "{}: the corotational study needs a pre-cut level ≥ L2 within {max_dofs} DOFs for its reference (raise --max-dofs or run `make refs`)",
+            base.name
+        )
+    })?;
+    let mut scene = base.clone();
+    scene.cuts.clear();
+    scene.element = ElementKind::Tet10;
+    scene.formulation = Formulation::Corotational;
+    let t0 = Instant::now();
+    let result = solve_scene(&scene, level, Some(&meshes[level]), false)
+        .map_err(|e| format!("{}: corotational reference: {e}", base.name))?;
+    let n = result.model.mesh.n_nodes();
+    let u = (0..n)
+        .map(|i| Vector3::new(result.d[3 * i], result.d[3 * i + 1], result.d[3 * i + 2]))
+        .collect();
+    progress(&format!(
+        "{} reference: corotational Tet10 FEM pre-cut L{level}, {} DOFs, Newton iterations {:?} ({:.1} s)",
+        base.name,
+        result.model.n_free,
+        result.iterations,
+        t0.elapsed().as_secs_f64()
+    ));
+    Ok((
+        Reference {
+            mesh: result.model.mesh,
+            u,
+        },
+        level,
+    ))
+}
+
 /// Runs the study for one case; `progress` is told each finished run.
+///
+/// `corotational`: every variant is solved corotational (static Newton) and
+/// compared with [`corotational_reference`]; only levels below the
+/// reference's run.
 pub fn converge_case(
     case_path: &Path,
     max_dofs: usize,
+    corotational: bool,
     mut progress: impl FnMut(&str),
 ) -> Result<Vec<Row>, String> {
     let base = Scene::load(case_path).map_err(|e| e.to_string())?;
@@ -126,7 +182,15 @@ pub fn converge_case(
             base.name
         )
     })?;
-    let reference = read_reference(&ref_path).map_err(|e| e.to_string())?;
+    let (reference, below) = if corotational {
+        let (r, level) = corotational_reference(&base, &family, max_dofs, &mut progress)?;
+        (r, level)
+    } else {
+        (
+            read_reference(&ref_path).map_err(|e| e.to_string())?,
+            usize::MAX,
+        )
+    };
     let field = Field {
         mesh: &reference.mesh,
         values: &reference.u,
@@ -192,8 +256,14 @@ pub fn converge_case(
         }
     }
     for (variant, element, level, mesh, keep_cut) in runs {
+        if level >= below {
+            continue;
+        }
         let mut scene = base.clone();
         scene.element = element;
+        if corotational {
+            scene.formulation = Formulation::Corotational;
+        }
         if !keep_cut {
             scene.cuts.clear();
         }

@@ -40,11 +40,18 @@ enum Command {
     Converge {
         /// Case files (each needs refs/out/<name>/*_fine/p2.vtu).
         cases: Vec<PathBuf>,
-        #[arg(long, default_value = "reports/data/convergence.csv")]
-        csv: PathBuf,
+        /// Output CSV [default: reports/data/convergence.csv, or
+        /// reports/data/convergence_corot.csv with --corotational].
+        #[arg(long)]
+        csv: Option<PathBuf>,
         /// Skip runs with more DOFs than this.
         #[arg(long, default_value_t = 250_000)]
         max_dofs: usize,
+        /// Solve every variant corotational (static Newton) and compare with our
+        /// corotational Tet10 FEM solution on the finest pre-cut level within
+        /// --max-dofs (levels below it run).
+        #[arg(long)]
+        corotational: bool,
     },
     /// The stability stress suite: cuts near nodes, ν → 0.5, dt sweep, 10⁴ undamped steps,
     /// a freed fragment falling and tumbling, 90°/180° twists, inverted elements.
@@ -127,7 +134,15 @@ fn run() -> Result<()> {
             cases,
             csv,
             max_dofs,
+            corotational,
         } => {
+            let csv = csv.unwrap_or_else(|| {
+                PathBuf::from(if corotational {
+                    "reports/data/convergence_corot.csv"
+                } else {
+                    "reports/data/convergence.csv"
+                })
+            });
             let mut rows = if csv.exists() {
                 xfem_cut::converge::read_csv(&csv)?
             } else {
@@ -138,8 +153,15 @@ fn run() -> Result<()> {
             for case in &cases {
                 let name = Scene::load(case)?.name;
                 bar.set_message(format!("{name}: running"));
-                let new = xfem_cut::converge::converge_case(case, max_dofs, |msg| bar.println(msg))
-                    .map_err(anyhow::Error::msg)?;
+                let new = xfem_cut::converge::converge_case(case, max_dofs, corotational, |msg| {
+                    // indicatif drops println when not on a terminal (make's logs).
+                    if bar.is_hidden() {
+                        eprintln!("{msg}");
+                    } else {
+                        bar.println(msg);
+                    }
+                })
+                .map_err(anyhow::Error::msg)?;
                 rows.retain(|r| r.case != name);
                 rows.extend(new);
                 xfem_cut::converge::write_csv(&csv, &rows)?;
