@@ -236,6 +236,17 @@ fn clamped_model(
     gravity: Option<Vector3<f64>>,
     need_mass: bool,
 ) -> Model {
+    clamped_cut_model(mesh, formulation, None, gravity, need_mass)
+}
+
+/// [`clamped_model`] with an optional cut.
+fn clamped_cut_model(
+    mesh: TetMesh,
+    formulation: Formulation,
+    cut: Option<xfem_cut::cut::CutSetup>,
+    gravity: Option<Vector3<f64>>,
+    need_mass: bool,
+) -> Model {
     let fixed = mesh
         .nodes
         .iter()
@@ -247,7 +258,7 @@ fn clamped_model(
         mesh,
         material: MAT,
         formulation,
-        cut: None,
+        cut,
         fixed,
         gravity,
         body_force: None,
@@ -599,27 +610,7 @@ fn exact_corotational_tangent_is_the_derivative_of_the_forces() {
         })
     {
         let label = format!("{:?} cut={}", mesh.kind, cut.is_some());
-        let model = {
-            let fixed = mesh
-                .nodes
-                .iter()
-                .enumerate()
-                .filter(|(_, p)| p.z.abs() < 1e-12)
-                .map(|(i, _)| (i, [Some(0.0); 3]))
-                .collect();
-            Model::build(ModelInput {
-                mesh,
-                material: MAT,
-                formulation: Formulation::Corotational,
-                cut,
-                fixed,
-                gravity: None,
-                body_force: None,
-                tractions: &[],
-                need_mass: false,
-            })
-            .unwrap()
-        };
+        let model = clamped_cut_model(mesh, Formulation::Corotational, cut, None, false);
         // A large rotation (60° about a skew axis) with a 5 % strain and a smooth wobble.
         let rot = Rotation3::from_axis_angle(
             &Unit::new_normalize(Vector3::new(1.0, 2.0, 0.5)),
