@@ -470,3 +470,38 @@ fn sci(v: f64) -> String {
 fn reference_family(case: &str) -> String {
     crate::converge::reference_of(case).map_or_else(|| "beam_crack".into(), |(f, _)| f)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cut_counts_and_medians_are_read_from_criterion_ids() {
+        // Ids as criterion_medians returns them (`/` inside names became `_`).
+        let benches = vec![
+            (
+                "cut-step/linear-uncut_tet4_10800tets-0cut/10k".to_string(),
+                1.0e6,
+            ),
+            (
+                "cut-step/linear-cut_tet4_10800tets-216cut/10k".to_string(),
+                1.2e6,
+            ),
+            (
+                "cut-step/linear-cut_tet10_1188tets-54cut/1k".to_string(),
+                2.0e6,
+            ),
+        ];
+        assert_eq!(cut_counts(&benches, "tet4", "10k"), "10800 (216)");
+        assert_eq!(cut_counts(&benches, "tet10", "1k"), "1188 (54)");
+        assert_eq!(cut_counts(&benches, "tet4", "1k"), "–");
+        assert_eq!(
+            median(&benches, "cut-step", &["linear-cut", "tet4", "10k"]),
+            Some(1.2e6)
+        );
+        assert_eq!(
+            median(&benches, "cut-step", &["linear-uncut", "tet4", "10k"]),
+            Some(1.0e6)
+        );
+    }
+}
