@@ -185,8 +185,12 @@ pub enum CutError {
     Misses(usize),
     #[error("cut[{0}] is degenerate: u × v = 0 or not finite")]
     Degenerate(usize),
-    #[error("only one [[cut]] per scene is supported so far (got {0})")]
-    TooMany(usize),
+    #[error("cut[{second}] meets cut[{first}] in element {element} or at its nodes: cuts must not intersect and must be at least one element apart")]
+    Meet {
+        first: usize,
+        second: usize,
+        element: usize,
+    },
 }
 
 /// Shifted Heaviside value ψ = (H(x) − H_i)/2 ∈ {0, ±1}, eq. (58)–(59).
@@ -200,10 +204,94 @@ pub fn setup_cut(
     surfaces: &[&dyn CutSurface],
     snap: f64,
 ) -> Result<CutSetup, CutError> {
-    if surfaces.len() > 1 {
-        return Err(CutError::TooMany(surfaces.len()));
+    let mut setups = surfaces
+        .iter()
+        .enumerate()
+        .map(|(k, surface)| setup_one(mesh, *surface, k, snap))
+        .collect::<Result<Vec<_>, _>>()?;
+    if setups.len() == 1 {
+        return Ok(setups.pop().expect("one setup"));
     }
-    let surface = surfaces[0];
+    merge(mesh, setups)
+}
+
+/// Several cuts that neither intersect nor share an element or node of
+/// their cut and touched elements, as one [`CutSetup`]: each element and
+/// node takes its data from the cut it belongs to (level set, side,
+/// enrichment), so every element sees a single cut.
+fn merge(mesh: &TetMesh, setups: Vec<CutSetup>) -> Result<CutSetup, CutError> {
+    let n_nodes = mesh.n_nodes();
+    let n_elements = mesh.n_elements();
+    let mut node_owner: Vec<Option<usize>> = vec![None; n_nodes];
+    let mut element_owner: Vec<Option<usize>> = vec![None; n_elements];
+    let mut elements = vec![ElementCut::Uncut; n_elements];
+    // An element of each node (named in errors).
+    let mut some_element = vec![0; n_nodes];
+    for e in (0..n_elements).rev() {
+        for &i in mesh.element(e) {
+            some_element[i] = e;
+        }
+    }
+    for (k, s) in setups.iter().enumerate() {
+        let claim = |i: usize, e: usize, owner: &mut [Option<usize>]| match owner[i] {
+            Some(j) if j != k => Err(CutError::Meet {
+                first: j,
+                second: k,
+                element: e,
+            }),
+            _ => {
+                owner[i] = Some(k);
+                Ok(())
+            }
+        };
+        for e in 0..n_elements {
+            if matches!(s.elements[e], ElementCut::Uncut) {
+                continue;
+            }
+            claim(e, e, &mut element_owner)?;
+            elements[e] = s.elements[e].clone();
+            for &i in mesh.element(e) {
+                claim(i, e, &mut node_owner)?;
+            }
+        }
+        for i in 0..n_nodes {
+            if s.enriched[i].is_some() {
+                claim(i, some_element[i], &mut node_owner)?;
+            }
+        }
+    }
+    // Nodes of no cut keep the first cut's level set (it only picks a side
+    // inside uncut elements, whose field has no enrichment).
+    let phi: Vec<f64> = (0..n_nodes)
+        .map(|i| setups[node_owner[i].unwrap_or(0)].phi[i])
+        .collect();
+    let node_side = phi.iter().map(|&p| if p >= 0.0 { 1 } else { -1 }).collect();
+    let mut enriched = vec![None; n_nodes];
+    let mut n_enriched = 0;
+    for i in 0..n_nodes {
+        if let Some(k) = node_owner[i] {
+            if setups[k].enriched[i].is_some() {
+                enriched[i] = Some(n_enriched);
+                n_enriched += 1;
+            }
+        }
+    }
+    Ok(CutSetup {
+        phi,
+        node_side,
+        enriched,
+        n_enriched,
+        elements,
+    })
+}
+
+/// The set-up of one cut (`index` in the scene, for errors).
+fn setup_one(
+    mesh: &TetMesh,
+    surface: &dyn CutSurface,
+    index: usize,
+    snap: f64,
+) -> Result<CutSetup, CutError> {
     let n_nodes = mesh.n_nodes();
     // Local size per node: the smallest longest-edge of its elements.
     let mut h = vec![f64::INFINITY; n_nodes];
@@ -217,7 +305,7 @@ pub fn setup_cut(
     }
     let mut phi: Vec<f64> = mesh.nodes.iter().map(|p| surface.level_set(p)).collect();
     if phi.iter().any(|p| !p.is_finite()) {
-        return Err(CutError::Degenerate(0));
+        return Err(CutError::Degenerate(index));
     }
     for (p, hi) in phi.iter_mut().zip(&h) {
         if p.abs() < snap * hi {
@@ -319,7 +407,7 @@ pub fn setup_cut(
         }
     }
     if n_enriched == 0 {
-        return Err(CutError::Misses(0));
+        return Err(CutError::Misses(index));
     }
 
     // Elements that touch the cut with enriched nodes of the other side.
