@@ -594,3 +594,25 @@ fn cuts_closer_than_an_element_are_refused() {
         .to_string();
     assert!(err.contains("cut[1] meets cut[0]"), "{err}");
 }
+
+#[test]
+fn every_shipped_case_loads_and_the_free_slice_falls_out() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
+    let mut n = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "toml") {
+            Scene::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            n += 1;
+        }
+    }
+    assert!(n >= 15, "only {n} cases");
+    // The slice between the two oblique cuts falls with g (0.3 s), the clamped pieces stay.
+    let scene = Scene::load(&dir.join("free_slice.toml")).unwrap();
+    let r = solve_scene(&scene, 0, None, false).unwrap();
+    let u = xfem_cut::run::probe_values(&scene, &r).unwrap();
+    let t: f64 = 0.3;
+    let want = 0.5 * 9.81 * t * t;
+    assert!((u[0].x - want).abs() <= 1e-6 * want, "slice: {:?}", u[0]);
+    assert!(u[1].norm() < 1e-2 * want && u[2].norm() < 1e-2 * want);
+}
