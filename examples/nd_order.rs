@@ -1,5 +1,7 @@
 //! Experiment: AMD against a graph nested dissection (BFS level separators)
 //! as the fill-reducing ordering of the corotational 10k-tet beam.
+mod common;
+
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{
@@ -7,13 +9,9 @@ use faer::sparse::linalg::cholesky::{
 };
 use faer::sparse::SymbolicSparseColMatRef;
 use faer::{dyn_stack::MemBuffer, dyn_stack::MemStack, Par, Side, Spec};
-use nalgebra::{Point3, Vector3};
 use std::collections::VecDeque;
 use std::time::Instant;
 use xfem_cut::assembly::{evaluate, Request, Rotations, Workspace};
-use xfem_cut::material::Material;
-use xfem_cut::mesh::box_mesh;
-use xfem_cut::model::{Formulation, Model, ModelInput};
 
 fn adjacency(n: usize, col_ptr: &[usize], row_idx: &[usize]) -> Vec<Vec<usize>> {
     let mut adj = vec![Vec::new(); n];
@@ -116,30 +114,7 @@ fn nd(
 
 fn main() {
     for div in [[6, 12, 24], [8, 16, 32], [3, 6, 11]] {
-        let mesh = box_mesh(Point3::origin(), Point3::new(0.03, 0.06, 0.2), div);
-        let fixed = mesh
-            .nodes
-            .iter()
-            .enumerate()
-            .filter(|(_, p)| p.z.abs() < 1e-12)
-            .map(|(i, _)| (i, [Some(0.0); 3]))
-            .collect();
-        let m = Model::build(ModelInput {
-            mesh,
-            material: Material {
-                young: 3e5,
-                poisson: 0.35,
-                density: 1070.0,
-            },
-            formulation: Formulation::Corotational,
-            cut: None,
-            fixed,
-            gravity: Some(Vector3::new(9.81, 0.0, 0.0)),
-            body_force: None,
-            tractions: &[],
-            need_mass: true,
-        })
-        .unwrap();
+        let m = common::clamped_beam(div);
         let mut k = vec![0.0; m.pattern.nnz()];
         evaluate(
             &m,

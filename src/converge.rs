@@ -143,9 +143,8 @@ fn corotational_reference(
     let t0 = Instant::now();
     let result = solve_scene(&scene, level, Some(&meshes[level]), false)
         .map_err(|e| format!("{}: corotational reference: {e}", base.name))?;
-    let n = result.model.mesh.n_nodes();
-    let u = (0..n)
-        .map(|i| Vector3::new(result.d[3 * i], result.d[3 * i + 1], result.d[3 * i + 2]))
+    let u = (0..result.model.mesh.n_nodes())
+        .map(|i| result.model.node_displacement(&result.d, i, 0))
         .collect();
     progress(&format!(
         "{} reference: corotational Tet10 FEM pre-cut L{level}, {} DOFs, Newton iterations {:?} ({:.1} s)",
@@ -183,8 +182,7 @@ pub fn converge_case(
         )
     })?;
     let (reference, below) = if corotational {
-        let (r, level) = corotational_reference(&base, &family, max_dofs, &mut progress)?;
-        (r, level)
+        corotational_reference(&base, &family, max_dofs, &mut progress)?
     } else {
         (
             read_reference(&ref_path).map_err(|e| e.to_string())?,

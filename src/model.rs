@@ -749,9 +749,7 @@ impl<'a> GroupKernel<'a> {
             }
         }
     }
-}
 
-impl GroupKernel<'_> {
     /// The exact tangent of the corotational forces (the derivative of the
     /// polar rotation included), block by block for b ≤ a, at deformation
     /// gradient `f` whose polar rotation is `self.rotation`:
@@ -780,10 +778,10 @@ impl GroupKernel<'_> {
         let tr = s.trace();
         let z = Matrix3::identity() * tr - s;
         let scale = tr.abs().max(1.0);
-        let Some(z_inv) = z
-            .try_inverse()
-            .filter(|_| z.determinant().abs() > 1e-10 * scale * scale * scale)
-        else {
+        if z.determinant().abs() <= 1e-10 * scale * scale * scale {
+            return false;
+        }
+        let Some(z_inv) = z.try_inverse() else {
             return false;
         };
         let c = lambda * (tr - 3.0) - 2.0 * mu;
