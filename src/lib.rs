@@ -13,7 +13,6 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod assembly;
-pub mod converge;
 pub mod corotation;
 pub mod cut;
 pub mod dynamics;
@@ -25,11 +24,8 @@ pub mod mesh;
 pub mod model;
 pub mod output;
 pub mod quadrature;
-pub mod reference;
-pub mod report;
 pub mod run;
 pub mod scene;
 pub mod solve;
 pub mod statics;
-pub mod stress;
-pub mod verify;
+pub mod study;

@@ -1,9 +1,9 @@
 //! `xfem-cut report`: reports/README.md with SVG plots from the study's CSV,
 //! the FEniCSx manifests and criterion's own estimates.
 
-use crate::converge::{read_csv, Row};
-use crate::reference::out_dir;
-use crate::verify::observed_order;
+use crate::study::converge::{read_csv, Row};
+use crate::study::reference::out_dir;
+use crate::study::verify::observed_order;
 use plotters::prelude::*;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -351,7 +351,7 @@ pub fn write_report(reports: &Path, criterion_dir: &Path, machine: &str) -> Resu
             let _ = writeln!(md, "| `{id}` | {:.3} ms |", ns * 1e-6);
         }
     }
-    match crate::stress::read_csv(&reports.join("data/stress.csv")) {
+    match crate::study::stress::read_csv(&reports.join("data/stress.csv")) {
         Ok(stress) => {
             let passed = stress.iter().filter(|r| r.pass).count();
             let _ = writeln!(
@@ -471,7 +471,7 @@ fn sci(v: f64) -> String {
 }
 
 fn reference_family(case: &str) -> String {
-    crate::converge::reference_of(case).map_or_else(|| "beam_crack".into(), |(f, _)| f)
+    crate::study::converge::reference_of(case).map_or_else(|| "beam_crack".into(), |(f, _)| f)
 }
 
 #[cfg(test)]
