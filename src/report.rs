@@ -299,6 +299,10 @@ pub fn write_report(reports: &Path, criterion_dir: &Path, machine: &str) -> Resu
         if case == "stretch" || case == "bend" {
             let _ = writeln!(md, "A Dirichlet condition on an edge (a line) is not well-posed in 3-D: as h → 0 the solutions converge, slowly (about 1/|log h|), to one that ignores the edge. The errors below are against a fine mesh that still feels the edge, so they say how close the levels are to that mesh, not to a limit; read the `*_face` variants for orders.\n");
         }
+        let picture = format!("pictures/{case}.png");
+        if reports.join(&picture).exists() {
+            let _ = writeln!(md, "![{case}: X-FEM with the cut opened beside the reference]({picture})\n\nLeft: X-FEM, structured level 2, Tet4, deformed at true scale, the cut elements drawn as their sub-tets so the cut opens, coloured by |u − u_ref|; right: the graded FEniCSx P2 reference on the pre-cut mesh, coloured by |u| (`make pictures`, `refs/pictures.py`).\n");
+        }
         let dofs_svg = format!("{case}_error_dofs.svg");
         let time_svg = format!("{case}_error_time.svg");
         plot(
