@@ -113,7 +113,11 @@ impl Plan {
             (true, Some(LinearSolver::Direct)) => add(
                 "numeric factorisation every iteration",
                 true,
-                "tangent R K R^T changes",
+                if dynamic.is_some_and(|o| o.exact_tangent) {
+                    "exact corotational tangent changes"
+                } else {
+                    "tangent R K R^T changes"
+                },
             ),
             (true, None) => add(
                 "numeric factorisation every iteration",
