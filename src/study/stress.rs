@@ -6,6 +6,7 @@
 use crate::assembly::{evaluate, Request, Rotations, Workspace};
 use crate::corotation::polar_rotation;
 use crate::dynamics::{Energies, Newmark};
+use crate::io::IoError;
 use crate::locate::Locator;
 use crate::model::{Formulation, Model};
 use crate::run::{evaluate_at, probe_values, solve_scene, RunResult};
@@ -15,8 +16,8 @@ use nalgebra::{Matrix3, Point3, Vector3};
 use std::path::Path;
 use std::time::Instant;
 
-/// One line of the stress table.
-#[derive(Debug, Clone)]
+/// One line of the stress table (`stress.csv`: test,setting,measured,criterion,pass,seconds).
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct StressRow {
     /// The family (what is stressed).
     pub test: String,
@@ -28,6 +29,7 @@ pub struct StressRow {
     pub criterion: String,
     pub pass: bool,
     /// Wall time of the run (s).
+    #[serde(serialize_with = "millis")]
     pub seconds: f64,
 }
 
@@ -58,55 +60,19 @@ pub fn run_suite(only: &str, mut progress: impl FnMut(&StressRow)) -> Vec<Stress
     rows
 }
 
-/// Writes the rows as CSV (whole or not at all).
-pub fn write_csv(path: &Path, rows: &[StressRow]) -> Result<(), crate::io::IoError> {
-    use std::io::Write;
-    let clean = |s: &str| s.replace([',', '\n'], ";");
-    crate::io::write_atomic(path, |w| {
-        writeln!(w, "test,setting,measured,criterion,pass,seconds")?;
-        for r in rows {
-            writeln!(
-                w,
-                "{},{},{},{},{},{:.3}",
-                clean(&r.test),
-                clean(&r.setting),
-                clean(&r.measured),
-                clean(&r.criterion),
-                r.pass,
-                r.seconds
-            )?;
-        }
-        Ok(())
-    })
+/// Writes the rows as CSV (whole or not at all); fields with commas are quoted.
+pub fn write_csv(path: &Path, rows: &[StressRow]) -> Result<(), IoError> {
+    crate::io::csv::write_rows(path, rows)
 }
 
 /// Reads what [`write_csv`] wrote.
-pub fn read_csv(path: &Path) -> Result<Vec<StressRow>, String> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
-    text.lines()
-        .skip(1)
-        .enumerate()
-        .map(|(i, line)| {
-            let f: Vec<&str> = line.split(',').collect();
-            if f.len() != 6 {
-                return Err(format!(
-                    "{}: line {}: expected 6 fields, found {}",
-                    path.display(),
-                    i + 2,
-                    f.len()
-                ));
-            }
-            Ok(StressRow {
-                test: f[0].into(),
-                setting: f[1].into(),
-                measured: f[2].into(),
-                criterion: f[3].into(),
-                pass: f[4] == "true",
-                seconds: f[5].parse().unwrap_or(f64::NAN),
-            })
-        })
-        .collect()
+pub fn read_csv(path: &Path) -> Result<Vec<StressRow>, IoError> {
+    crate::io::csv::read_rows(path, false)
+}
+
+/// Seconds with three decimals.
+fn millis<S: serde::Serializer>(x: &f64, s: S) -> Result<S::Ok, S::Error> {
+    s.collect_str(&format_args!("{x:.3}"))
 }
 
 /// Estimates of the 2-norm condition number of the free system's tangent at
@@ -964,7 +930,7 @@ mod tests {
         let path = dir.path().join("s.csv");
         write_csv(&path, &rows).unwrap();
         let back = read_csv(&path).unwrap();
-        assert_eq!(back[0].test, "a; b");
+        assert_eq!(back[0].test, "a, b", "a comma is quoted, not replaced");
         assert!(back[0].pass);
         assert_eq!(back[0].seconds, 1.5);
     }
