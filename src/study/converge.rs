@@ -16,6 +16,7 @@ use crate::run::{evaluate_at, solve_scene};
 use crate::scene::{BodyGeometry, Scene};
 use crate::study::reference::{out_dir, read_reference, Reference};
 use crate::study::verify::{l2_error, Field};
+use crate::study::StudyError;
 use nalgebra::{Point3, Vector3};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -136,28 +137,29 @@ fn corotational_reference(
     family: &str,
     max_dofs: usize,
     progress: &mut impl FnMut(&str),
-) -> Result<(Reference, usize), String> {
+) -> Result<(Reference, usize), StudyError> {
     let meshes = family_meshes(family);
     let mut chosen = None;
     for (k, path) in meshes.iter().enumerate() {
-        let m = base.read_mesh(path).map_err(|e| e.to_string())?;
+        let m = base.read_mesh(path)?;
         if 3 * m.to_tet10().n_nodes() <= max_dofs {
             chosen = Some(k);
         }
     }
     let level = chosen.filter(|&k| k >= 2).ok_or_else(|| {
-        format!(
+        StudyError::Precondition(format!(
             "{}: the corotational study needs a pre-cut level ≥ L2 within {max_dofs} DOFs for its reference (raise --max-dofs or run `make refs`)",
             base.name
-        )
+        ))
     })?;
     let mut scene = base.clone();
     scene.cuts.clear();
     scene.element = ElementKind::Tet10;
     scene.formulation = Formulation::Corotational;
     let t0 = Instant::now();
-    let result = solve_scene(&scene, level, Some(&meshes[level]), false)
-        .map_err(|e| format!("{}: corotational reference: {e}", base.name))?;
+    let result = solve_scene(&scene, level, Some(&meshes[level]), false).map_err(|e| {
+        StudyError::from(e).during(format!("{}: corotational reference", base.name))
+    })?;
     let u = (0..result.model.mesh.n_nodes())
         .map(|i| result.model.node_displacement(&result.d, i, 0))
         .collect();
@@ -187,22 +189,19 @@ pub fn converge_case(
     max_dofs: usize,
     corotational: bool,
     mut progress: impl FnMut(&str),
-) -> Result<Vec<Row>, String> {
-    let base = Scene::load(case_path).map_err(|e| e.to_string())?;
+) -> Result<Vec<Row>, StudyError> {
+    let base = Scene::load(case_path)?;
     let (family, ref_path) = reference_of(&base.name).ok_or_else(|| {
-        format!(
+        StudyError::Precondition(format!(
             "{}: no fine reference in refs/out/{}/*_fine/p2.vtu (run `make refs`)",
             case_path.display(),
             base.name
-        )
+        ))
     })?;
     let (reference, below) = if corotational {
         corotational_reference(&base, &family, max_dofs, &mut progress)?
     } else {
-        (
-            read_reference(&ref_path).map_err(|e| e.to_string())?,
-            usize::MAX,
-        )
+        (read_reference(&ref_path)?, usize::MAX)
     };
     let field = Field {
         mesh: &reference.mesh,
@@ -279,8 +278,8 @@ pub fn converge_case(
         // Skip runs beyond the DOF budget (estimated from the mesh before solving).
         let t0 = Instant::now();
         let m = match &mesh {
-            Some(p) => scene.read_mesh(p).map_err(|e| e.to_string())?,
-            None => scene.mesh(level).map_err(|e| e.to_string())?,
+            Some(p) => scene.read_mesh(p)?,
+            None => scene.mesh(level)?,
         };
         let estimate = 3 * if element == ElementKind::Tet10 {
             m.to_tet10().n_nodes()
@@ -295,15 +294,15 @@ pub fn converge_case(
             ));
             continue;
         }
-        let result =
-            solve_scene(&scene, level, mesh.as_deref(), false).map_err(|e| e.to_string())?;
+        let result = solve_scene(&scene, level, mesh.as_deref(), false)?;
         let wall = t0.elapsed().as_secs_f64();
         let t = result.timings;
         // Mesh reading is not precompute (FEniCSx times exclude it too).
         let precompute = t.cut + t.model + t.symbolic;
         let locator = Locator::new(&result.model.mesh);
-        let err = l2_error(&field, &result.model, &result.d, &locator)
-            .map_err(|e| format!("{}: {variant} L{level}: {e}", base.name))?;
+        let err = l2_error(&field, &result.model, &result.d, &locator).map_err(|e| {
+            StudyError::from(e).during(format!("{}: {variant} L{level}", base.name))
+        })?;
         let ours = |x: &Point3<f64>| evaluate_at(&result.model, &locator, &result.d, x);
         let opening = relative_error(crack.iter().map(|(x, jump)| {
             let mine = ours(&(x + offset))

@@ -12,6 +12,7 @@ use crate::model::{Formulation, Model};
 use crate::run::{evaluate_at, probe_values, solve_scene, RunResult};
 use crate::scene::{Analysis, Scene};
 use crate::solve::Cholesky;
+use crate::study::StudyError;
 use nalgebra::{Matrix3, Point3, Vector3};
 use std::path::Path;
 use std::time::Instant;
@@ -649,25 +650,28 @@ struct Tumble {
 
 /// Spins the fragment above a complete cut at z = 1.3 about the y axis
 /// through its centroid at 3 rad/s for 1.2 s (206°).
-fn tumble(formulation: &str) -> Result<Tumble, String> {
+fn tumble(formulation: &str) -> Result<Tumble, StudyError> {
     let analysis = format!(
         "{BOTTOM}[analysis]\ntype = \"dynamic\"\nformulation = \"{formulation}\"\ndt = 0.01\nsteps = 120\n"
     );
     let mut scene = bar(1.3, None, &analysis);
     // Stiff enough that the centrifugal strain (ρω²L²/E ≈ 2e-5) is small.
     scene.material.young = 1e8;
-    let mesh = scene.mesh(0).map_err(|e| e.to_string())?;
-    let (model, _plan) = scene.build(mesh).map_err(|e| e.to_string())?;
-    let chol = Cholesky::new(&model.pattern).map_err(|e| e.to_string())?;
+    let mesh = scene.mesh(0)?;
+    let (model, _plan) = scene.build(mesh)?;
+    let chol = Cholesky::new(&model.pattern)?;
     let Analysis::Dynamic { options, .. } = scene.analysis else {
-        return Err("not a dynamic scene".into());
+        return Err(StudyError::Precondition("not a dynamic scene".into()));
     };
-    let mut nm = Newmark::new(&model, chol, options).map_err(|e| e.to_string())?;
+    let mut nm = Newmark::new(&model, chol, options)?;
     // v = ω × (x − c) on the upper side's DOFs: u where the node lies above,
     // and the enriched DOFs a that the upper side sees (ψ = ±1 there).
     let omega = Vector3::new(0.0, 3.0, 0.0);
     let c = Vector3::new(0.5, 0.5, 1.65);
-    let cut = model.cut.as_ref().ok_or("the bar has no cut")?;
+    let cut = model
+        .cut
+        .as_ref()
+        .ok_or_else(|| StudyError::Precondition("the bar has no cut".into()))?;
     let n_nodes = model.mesh.n_nodes();
     for i in 0..n_nodes {
         let v = omega.cross(&(model.mesh.nodes[i].coords - c));
@@ -683,11 +687,11 @@ fn tumble(formulation: &str) -> Result<Tumble, String> {
     let e0 = nm.energies();
     let mut max_strain: f64 = 0.0;
     for _ in 0..options.steps {
-        nm.step().map_err(|e| e.to_string())?;
+        nm.step()?;
         max_strain = max_strain.max(nm.energies().strain);
     }
     if nm.state.d.iter().any(|v| !v.is_finite()) {
-        return Err("non-finite state".into());
+        return Err(StudyError::Precondition("non-finite state".into()));
     }
     // Distance from the best rigid fit (Kabsch): the discrete body's inertia
     // is not exactly that of the box (lumped masses), so it may precess; what
@@ -826,12 +830,12 @@ fn twist(
     scene: &Scene,
     angle: f64,
     arc: bool,
-) -> Result<(Model, crate::statics::StaticSolution), String> {
-    let mesh = scene.mesh(0).map_err(|e| e.to_string())?;
-    let (model, _plan) = scene.build(mesh).map_err(|e| e.to_string())?;
-    let mut chol = Cholesky::new(&model.pattern).map_err(|e| e.to_string())?;
+) -> Result<(Model, crate::statics::StaticSolution), StudyError> {
+    let mesh = scene.mesh(0)?;
+    let (model, _plan) = scene.build(mesh)?;
+    let mut chol = Cholesky::new(&model.pattern)?;
     let Analysis::Static(opts) = scene.analysis else {
-        return Err("not a static scene".into());
+        return Err(StudyError::Precondition("not a static scene".into()));
     };
     let centre = Vector3::new(0.015, 0.03, 0.0);
     let nodes = &model.mesh.nodes;
@@ -844,7 +848,7 @@ fn twist(
             lambda * p.value
         }
     })
-    .map_err(|e| format!("{}: {e}", scene.file.display()))?;
+    .map_err(|e| StudyError::from(e).during(scene.file.display().to_string()))?;
     Ok((model, sol))
 }
 
