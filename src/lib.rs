@@ -32,4 +32,5 @@ pub mod scene;
 pub mod solve;
 pub mod statics;
 pub mod stress;
+pub mod surface;
 pub mod verify;
