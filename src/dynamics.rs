@@ -213,6 +213,13 @@ impl<'m> Newmark<'m> {
         Ok(())
     }
 
+    /// Ends the integration, giving back the state and the factorisation
+    /// (a progressive cut maps the state onto its new model and keeps the
+    /// symbolic analysis where the pattern did not change).
+    pub fn into_parts(self) -> (State, Cholesky) {
+        (self.state, self.chol)
+    }
+
     pub fn factorisations(&self) -> usize {
         self.chol.factorisations
     }
