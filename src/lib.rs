@@ -13,6 +13,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod assembly;
+pub mod blade;
 pub mod converge;
 pub mod corotation;
 pub mod cut;

@@ -1,0 +1,170 @@
+#![allow(clippy::needless_range_loop)]
+//! Blades and progressive cuts: the completed sweep equals the patch, cut
+//! events keep the field and both energies, the linear system is
+//! refactorised at events only, bad blades are typed errors naming the key.
+
+mod common;
+
+use common::{bar, model, relative_difference, solve};
+use nalgebra::{Point3, Vector3};
+use xfem_cut::blade::{run_dynamic, Blade, BladeError, CutItem, CutSet};
+use xfem_cut::cut::{setup_cut, PlanarPatch, DEFAULT_SNAP};
+use xfem_cut::dynamics::DynamicOptions;
+use xfem_cut::model::Formulation;
+
+/// The patch a straight blade sweeps: edge a–b = origin → origin + u, travel v.
+fn patch() -> PlanarPatch {
+    PlanarPatch {
+        origin: Point3::new(-0.5, -0.5, 1.15625),
+        u: Vector3::new(1.125, 0.0, 0.0),
+        v: Vector3::new(0.0, 2.0, 0.0),
+    }
+}
+
+fn blade(start: f64, end: f64) -> Blade {
+    let p = patch();
+    Blade::straight(0, p.origin, p.origin + p.u, p.v, start, end).unwrap()
+}
+
+fn one_blade(b: Blade) -> CutSet {
+    CutSet {
+        items: vec![CutItem::Blade(b)],
+        snap: DEFAULT_SNAP,
+    }
+}
+
+#[test]
+fn a_static_blade_takes_the_completed_sweep_and_equals_the_patch() {
+    let mesh = bar([3, 3, 6]);
+    let g = Vector3::new(-9.81, 0.0, 0.0);
+    let reference = setup_cut(&mesh, &[&patch()], DEFAULT_SNAP).unwrap();
+    let m_ref = model(&mesh, Some(reference), Formulation::Linear, g, None, false).unwrap();
+    let d_ref = solve(&m_ref);
+    let cuts = one_blade(blade(0.1, 0.6));
+    let m = model(
+        &mesh,
+        cuts.completed(&mesh).unwrap(),
+        Formulation::Linear,
+        g,
+        None,
+        false,
+    )
+    .unwrap();
+    let d = solve(&m);
+    let diff = relative_difference(&m_ref, &d_ref, &m, &d);
+    println!("completed sweep vs patch: {diff:e}");
+    assert!(diff <= 1e-12, "{diff:e}");
+    // Half-way the swept patch is half as long in v.
+    let half = cuts.setup_at(&mesh, 0.35).unwrap().unwrap();
+    let full = cuts.completed(&mesh).unwrap().unwrap();
+    assert!(half.n_enriched < full.n_enriched && half.n_enriched > 0);
+    assert!(cuts.setup_at(&mesh, 0.05).unwrap().is_none());
+}
+
+#[test]
+fn cut_events_keep_both_energies_and_refactorise_only_there() {
+    let mesh = bar([3, 3, 6]);
+    let g = Vector3::new(-9.81, 0.0, 0.0);
+    for formulation in [Formulation::Linear, Formulation::Corotational] {
+        let cuts = one_blade(blade(0.05, 0.25));
+        let opts = DynamicOptions {
+            dt: 0.01,
+            steps: 30,
+            ..DynamicOptions::default()
+        };
+        let build = |cut| model(&mesh, cut, formulation, g, None, true);
+        let mut frames = 0;
+        let run = run_dynamic(&cuts, &mesh, &build, opts, |_, m, s| {
+            assert_eq!(s.d.len(), m.n_dofs());
+            frames += 1;
+        })
+        .unwrap();
+        let sw = &run.sweep;
+        println!("{formulation:?}: {sw}");
+        assert_eq!(frames, opts.steps + 1);
+        assert!(sw.events.len() >= 3, "{} events", sw.events.len());
+        let mut dofs = sw.dofs_first;
+        let mut worst: f64 = 0.0;
+        for e in &sw.events {
+            assert_eq!(e.dofs_before, dofs);
+            assert!(
+                e.dofs_after >= e.dofs_before,
+                "an event must not remove DOFs"
+            );
+            dofs = e.dofs_after;
+            assert!(e.before.kinetic > 0.0 && e.before.strain > 0.0);
+            let dk = (e.after.kinetic - e.before.kinetic).abs() / e.before.kinetic;
+            let ds = (e.after.strain - e.before.strain).abs() / e.before.strain;
+            let dw = (e.after.external_work - e.before.external_work).abs()
+                / e.before.external_work.abs();
+            println!(
+                "  event at t = {:.2}: DOFs {} → {}, kinetic {:.6e} (rel. change {dk:.1e}), strain {:.6e} ({ds:.1e}), {:.2e} s",
+                e.time, e.dofs_before, e.dofs_after, e.before.kinetic, e.before.strain, e.seconds
+            );
+            worst = worst.max(dk).max(ds).max(dw);
+        }
+        assert!(
+            worst <= 1e-12,
+            "{formulation:?}: energy jump {worst:e} at an event"
+        );
+        assert_eq!(sw.dofs_last, dofs);
+        assert_eq!(run.model.n_dofs(), dofs);
+        let changed = sw.events.iter().filter(|e| e.pattern_changed).count();
+        assert_eq!(sw.symbolic, 1 + changed);
+        if formulation == Formulation::Linear {
+            // The mass at the start, then one factorisation per model (the first step after each event).
+            assert_eq!(sw.factorisations, 2 + sw.events.len());
+        }
+        // The completed sweep is the patch's set-up.
+        let full = setup_cut(&mesh, &[&patch()], DEFAULT_SNAP).unwrap();
+        assert_eq!(run.model.cut.as_ref().unwrap().enriched, full.enriched);
+    }
+}
+
+#[test]
+fn bad_blades_are_errors_naming_the_key() {
+    let p = patch();
+    let msg = |r: Result<Blade, BladeError>| r.expect_err("must be refused").to_string();
+    let e = msg(Blade::straight(2, p.origin, p.origin + p.u, p.v, 0.5, 0.5));
+    assert!(e.contains("cut[2]") && e.contains("`end`"), "{e}");
+    let e = msg(Blade::new(
+        1,
+        vec![
+            (0.1, [p.origin, p.origin + p.u]),
+            (0.3, [p.origin + p.v * 0.5, p.origin + p.u + p.v * 0.5]),
+            (0.2, [p.origin + p.v, p.origin + p.u + p.v]),
+        ],
+    ));
+    assert!(
+        e.contains("cut[1]") && e.contains("`times`") && e.contains("out of order"),
+        "{e}"
+    );
+    let e = msg(Blade::straight(0, p.origin, p.origin, p.v, 0.0, 1.0));
+    assert!(e.contains("`blade`") && e.contains("zero length"), "{e}");
+
+    let mesh = bar([2, 2, 4]);
+    // Beside the body: never meets it.
+    let off = Vector3::new(5.0, 0.0, 0.0);
+    let cuts =
+        one_blade(Blade::straight(0, p.origin + off, p.origin + p.u + off, p.v, 0.0, 1.0).unwrap());
+    let e = cuts.completed(&mesh).expect_err("misses").to_string();
+    assert!(
+        e.contains("cut[0]") && e.contains("never meets the body"),
+        "{e}"
+    );
+    // Through another cut.
+    let crossing = PlanarPatch {
+        origin: Point3::new(0.5, -0.5, 0.5),
+        u: Vector3::new(0.0, 2.0, 0.0),
+        v: Vector3::new(0.0, 0.0, 1.2),
+    };
+    let cuts = CutSet {
+        items: vec![
+            CutItem::Surface(Box::new(crossing)),
+            CutItem::Blade(Blade::straight(1, p.origin, p.origin + p.u, p.v, 0.0, 1.0).unwrap()),
+        ],
+        snap: DEFAULT_SNAP,
+    };
+    let e = cuts.completed(&mesh).expect_err("meets").to_string();
+    assert!(e.contains("cut[1]") && e.contains("meets cut[0]"), "{e}");
+}
