@@ -5,12 +5,15 @@
 
 mod common;
 
-use common::{bar, model, relative_difference, solve};
+use common::{bar, case, model, relative_difference, solve};
 use nalgebra::{Point3, Vector3};
 use xfem_cut::blade::{run_dynamic, Blade, BladeError, CutItem, CutSet};
 use xfem_cut::cut::{setup_cut, PlanarPatch, DEFAULT_SNAP};
 use xfem_cut::dynamics::DynamicOptions;
+use xfem_cut::locate::Locator;
 use xfem_cut::model::Formulation;
+use xfem_cut::run::evaluate_at;
+use xfem_cut::scene::Analysis;
 
 /// The patch a straight blade sweeps: edge a–b = origin → origin + u, travel v.
 fn patch() -> PlanarPatch {
@@ -167,4 +170,64 @@ fn bad_blades_are_errors_naming_the_key() {
     };
     let e = cuts.completed(&mesh).expect_err("meets").to_string();
     assert!(e.contains("cut[1]") && e.contains("meets cut[0]"), "{e}");
+}
+
+/// Jump of the displacement across the cut at x: + side minus − side.
+fn opening(m: &xfem_cut::model::Model, d: &[f64], x: Point3<f64>) -> f64 {
+    let loc = Locator::new(&m.mesh);
+    let (e, _) = loc.locate(&m.mesh, &x).unwrap();
+    (m.displacement_at(d, e, &x, 1) - m.displacement_at(d, e, &x, -1)).norm()
+}
+
+#[test]
+fn cut_progressive_settles_to_the_static_full_cut() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("cases/progressive/cut_progressive.toml");
+    let (scene, cuts) = case::load(&path);
+    let mesh = scene.mesh(0).unwrap();
+    let Analysis::Dynamic { options, .. } = scene.analysis else {
+        panic!("a dynamic case")
+    };
+    let build = |cut| case::build(&scene, &mesh, cut);
+    let ahead = Point3::new(0.0225, 0.03, 0.1);
+    let mut worst_ahead: f64 = 0.0;
+    let run = run_dynamic(&cuts, &mesh, &build, options, |_, m, s| {
+        if m.cut.is_some() {
+            worst_ahead = worst_ahead.max(opening(m, &s.d, ahead));
+        }
+    })
+    .unwrap();
+    let sw = &run.sweep;
+    println!("cut_progressive: {sw}");
+    assert!(!sw.events.is_empty());
+    for e in &sw.events {
+        let dk =
+            (e.after.kinetic - e.before.kinetic).abs() / e.before.kinetic.max(f64::MIN_POSITIVE);
+        let ds = (e.after.strain - e.before.strain).abs() / e.before.strain.max(f64::MIN_POSITIVE);
+        assert!(
+            dk <= 1e-12 && ds <= 1e-12,
+            "event at {}: {dk:e} {ds:e}",
+            e.time
+        );
+    }
+    assert_eq!(
+        worst_ahead, 0.0,
+        "the cut opened ahead of the blade's elements"
+    );
+    // The static solution with the completed cut.
+    let m_static = build(cuts.completed(&mesh).unwrap()).unwrap();
+    let d_static = solve(&m_static);
+    let (loc_s, loc_d) = (Locator::new(&m_static.mesh), Locator::new(&run.model.mesh));
+    let (mut diff, mut scale): (f64, f64) = (0.0, 0.0);
+    for p in &scene.probes {
+        let us = evaluate_at(&m_static, &loc_s, &d_static, p).unwrap();
+        let ud = evaluate_at(&run.model, &loc_d, &run.state.d, p).unwrap();
+        println!("  probe {p:?}: dynamic {ud:?}, static {us:?}");
+        diff = diff.max((us - ud).norm());
+        scale = scale.max(us.norm());
+    }
+    let lip = opening(&run.model, &run.state.d, Point3::new(0.005, 0.03, 0.1));
+    println!("  settled at t = {:.2} s: probes within {:.2e} (relative) of the static full cut; opening behind the blade {lip:e}", run.state.time, diff / scale);
+    assert!(diff <= 1e-6 * scale, "{:e}", diff / scale);
+    assert!(lip > 1e-3 * scale, "the cut did not open: {lip:e}");
 }

@@ -2,6 +2,8 @@
 //! face clamped, gravity, models built through the library.
 #![allow(dead_code)]
 
+pub mod case;
+
 use nalgebra::{Point3, Vector3};
 use xfem_cut::cut::CutSetup;
 use xfem_cut::material::Material;
