@@ -268,6 +268,14 @@ impl CutSet {
         })
     }
 
+    /// The edges of the blades cutting at time t (start ≤ t ≤ end), for output.
+    pub fn edges_at(&self, t: f64) -> Vec<[Point3<f64>; 2]> {
+        self.blades()
+            .filter(|b| b.start() <= t && t <= b.end())
+            .map(|b| b.edge_at(t))
+            .collect()
+    }
+
     /// The cut set-up at time t: each blade's swept surface so far; a blade
     /// whose surface does not yet cut the body is left out.
     pub fn setup_at(&self, mesh: &TetMesh, t: f64) -> Result<Option<CutSetup>, BladeError> {

@@ -10,8 +10,10 @@ use nalgebra::{Point3, Vector3};
 use xfem_cut::blade::{run_dynamic, Blade, BladeError, CutItem, CutSet};
 use xfem_cut::cut::{setup_cut, PlanarPatch, DEFAULT_SNAP};
 use xfem_cut::dynamics::DynamicOptions;
+use xfem_cut::io::{read_pvd, read_vtu};
 use xfem_cut::locate::Locator;
 use xfem_cut::model::Formulation;
+use xfem_cut::output::{progressive_frame, write_progressive};
 use xfem_cut::run::evaluate_at;
 use xfem_cut::scene::Analysis;
 
@@ -191,12 +193,39 @@ fn cut_progressive_settles_to_the_static_full_cut() {
     let build = |cut| case::build(&scene, &mesh, cut);
     let ahead = Point3::new(0.0225, 0.03, 0.1);
     let mut worst_ahead: f64 = 0.0;
-    let run = run_dynamic(&cuts, &mesh, &build, options, |_, m, s| {
+    let mut frames = Vec::new();
+    let run = run_dynamic(&cuts, &mesh, &build, options, |step, m, s| {
         if m.cut.is_some() {
             worst_ahead = worst_ahead.max(opening(m, &s.d, ahead));
         }
+        if step % 10 == 0 {
+            frames.push((s.time, progressive_frame(m, &s.d, &cuts.edges_at(s.time))));
+        }
     })
     .unwrap();
+    // The series: the blade edge as a line cell while it cuts, cut cells growing behind it.
+    let dir = tempfile::tempdir().unwrap();
+    write_progressive(dir.path(), &frames).unwrap();
+    let series = read_pvd(&dir.path().join("result.pvd")).unwrap();
+    assert_eq!(series.len(), options.steps / 10 + 1);
+    let cells = |k: usize, flag: f64| {
+        let data = read_vtu(&dir.path().join(&series[k].1)).unwrap();
+        data.cell_data["cut"]
+            .1
+            .iter()
+            .filter(|&&f| f == flag)
+            .count()
+    };
+    let (lines, cut) = (|k| cells(k, 4.0), |k| cells(k, 2.0) + cells(k, 3.0));
+    assert_eq!((lines(0), lines(20)), (0, 0));
+    assert_eq!(lines(3), 1);
+    assert!(
+        cut(0) == 0 && cut(3) > 0 && cut(20) > cut(3),
+        "{} {} {}",
+        cut(0),
+        cut(3),
+        cut(20)
+    );
     let sw = &run.sweep;
     println!("cut_progressive: {sw}");
     assert!(!sw.events.is_empty());
