@@ -540,7 +540,7 @@ fn free_slice_made_by_two_blades_falls_with_g_after_the_second() {
     let fall = at(&run.state.d, &probes[0]).x;
     println!("  freed after t = {freed_at:.3}; at t = {:.2}: slice acceleration {:?} (g = {g}), fall {fall:.4e}, clamped pieces {:.2e} {:.2e}", run.state.time, a, u_low.norm(), u_high.norm());
     assert!(
-        (a.x - g).abs() <= 1e-3 * g && a.y.abs() + a.z.abs() <= 1e-3 * g,
+        (a.x - g).abs() <= 1e-6 * g && a.y.abs() + a.z.abs() <= 1e-6 * g,
         "{a:?}"
     );
     assert!(u_low.norm() < 1e-2 * fall && u_high.norm() < 1e-2 * fall);
