@@ -352,6 +352,92 @@ impl CutSet {
     }
 }
 
+/// Which steps can change the cut set-up, so that the others skip the check.
+/// A straight sweep keeps its plane: an element's classification can change
+/// only while the growing patch passes over it, i.e. when the range of its
+/// vertices' patch coordinate t (along the travel, in the completed patch)
+/// meets the new strip [f_prev, f_now]. Elements the plane does not reach
+/// (all vertices on one side, farther than twice the snapping distance)
+/// never change. A path's strip moves, so every step of its sweep is checked.
+struct SweepIndex {
+    /// Per straight blade: start, end, (t_min, t_max) of the elements its plane reaches, sorted.
+    straight: Vec<(f64, f64, Vec<(f64, f64)>)>,
+    /// Sweep spans of the other blades.
+    paths: Vec<(f64, f64)>,
+}
+
+impl SweepIndex {
+    fn new(cuts: &CutSet, mesh: &TetMesh) -> SweepIndex {
+        let mut h = vec![f64::INFINITY; mesh.n_nodes()];
+        for e in 0..mesh.n_elements() {
+            let he = mesh.element_size(e);
+            for &i in mesh.element(e) {
+                h[i] = h[i].min(he);
+            }
+        }
+        let mut straight = Vec::new();
+        let mut paths = Vec::new();
+        for b in cuts.blades() {
+            let Some(Swept::Patch(p)) = b.swept(b.end()) else {
+                paths.push((b.start(), b.end()));
+                continue;
+            };
+            let phi: Vec<f64> = mesh
+                .nodes
+                .iter()
+                .zip(&h)
+                .map(|(x, hi)| {
+                    let f = p.level_set(x);
+                    if f.abs() < 2.0 * cuts.snap * hi {
+                        0.0
+                    } else {
+                        f
+                    }
+                })
+                .collect();
+            let mut ranges = Vec::new();
+            for e in 0..mesh.n_elements() {
+                let v = mesh.vertices(e);
+                let lo = v.iter().map(|&i| phi[i]).fold(f64::INFINITY, f64::min);
+                let hi = v.iter().map(|&i| phi[i]).fold(f64::NEG_INFINITY, f64::max);
+                if lo > 0.0 || hi < 0.0 {
+                    continue;
+                }
+                let st: Vec<(f64, f64)> =
+                    v.iter().map(|&i| p.coordinates(&mesh.nodes[i])).collect();
+                let smin = st.iter().map(|c| c.0).fold(f64::INFINITY, f64::min);
+                let smax = st.iter().map(|c| c.0).fold(f64::NEG_INFINITY, f64::max);
+                if smax < -1e-6 || smin > 1.0 + 1e-6 {
+                    continue;
+                }
+                let tmin = st.iter().map(|c| c.1).fold(f64::INFINITY, f64::min);
+                let tmax = st.iter().map(|c| c.1).fold(f64::NEG_INFINITY, f64::max);
+                ranges.push((tmin, tmax));
+            }
+            ranges.sort_by(|a, b| a.0.total_cmp(&b.0));
+            straight.push((b.start(), b.end(), ranges));
+        }
+        SweepIndex { straight, paths }
+    }
+
+    /// Whether the set-up may differ between times t0 < t1.
+    fn may_change(&self, t0: f64, t1: f64) -> bool {
+        let active = |start: f64, end: f64| t1 > start && t0 < end;
+        if self.paths.iter().any(|&(s, e)| active(s, e)) {
+            return true;
+        }
+        let margin = 1e-6;
+        self.straight.iter().any(|(start, end, ranges)| {
+            if !active(*start, *end) {
+                return false;
+            }
+            let frac = |t: f64| ((t - start) / (end - start)).clamp(0.0, 1.0);
+            let (f0, f1) = (frac(t0) - margin, frac(t1) + margin);
+            ranges.iter().take_while(|r| r.0 <= f1).any(|r| r.1 >= f0)
+        })
+    }
+}
+
 /// Whether two set-ups give the same model (enrichment, sides of enriched
 /// nodes, element classification and sub-tets).
 pub fn same_setup(a: Option<&CutSetup>, b: Option<&CutSetup>) -> bool {
@@ -469,8 +555,10 @@ pub struct Sweep {
     /// Seconds in events, and in steps (each step's Newton solve).
     pub event_seconds: f64,
     pub step_seconds: f64,
-    /// Seconds spent per step checking whether the cut grew.
+    /// Seconds spent checking whether the cut grew, and the steps at which
+    /// the set-up was rebuilt to check (the others could not change it).
     pub check_seconds: f64,
+    pub checks: usize,
     /// Per step: (time, seconds of the step, whether an event followed it).
     pub series: Vec<(f64, f64, bool)>,
 }
@@ -480,16 +568,18 @@ impl std::fmt::Display for Sweep {
         let patterns = self.events.iter().filter(|e| e.pattern_changed).count();
         write!(
             f,
-            "sweep {:.4} → {:.4} s: {} cut events ({} changed the pattern), DOFs {} → {}, {} symbolic / {} numeric factorisations, {:.3} s in events, {:.3} s in steps",
+            "sweep {:.4} → {:.4} s: {} cut events ({} changed the pattern, {} set-ups checked), DOFs {} → {}, {} symbolic / {} numeric factorisations, {:.3} s in events, {:.3} s checking, {:.3} s in steps",
             self.start,
             self.end,
             self.events.len(),
             patterns,
+            self.checks,
             self.dofs_first,
             self.dofs_last,
             self.symbolic,
             self.factorisations,
             self.event_seconds,
+            self.check_seconds,
             self.step_seconds
         )
     }
@@ -521,6 +611,7 @@ pub fn run_dynamic(
         end,
         ..Sweep::default()
     };
+    let index = SweepIndex::new(cuts, mesh);
     let mut model = build(cuts.setup_at(mesh, 0.0)?)?;
     sweep.dofs_first = model.n_dofs();
     let mut chol = Cholesky::new(&model.pattern)?;
@@ -556,13 +647,14 @@ pub fn run_dynamic(
             step += 1;
             observe(step, &model, &nm.state);
             let t = Instant::now();
-            let setup =
-                if nm.state.time > start - 0.5 * opts.dt && nm.state.time < end + 1.5 * opts.dt {
-                    let s = cuts.setup_at(mesh, nm.state.time)?;
-                    (!same_setup(model.cut.as_ref(), s.as_ref())).then_some(s)
-                } else {
-                    None
-                };
+            let t_now = nm.state.time;
+            let setup = if index.may_change(t_now - opts.dt, t_now) {
+                sweep.checks += 1;
+                let s = cuts.setup_at(mesh, t_now)?;
+                (!same_setup(model.cut.as_ref(), s.as_ref())).then_some(s)
+            } else {
+                None
+            };
             sweep.check_seconds += t.elapsed().as_secs_f64();
             sweep
                 .series

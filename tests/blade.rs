@@ -120,6 +120,21 @@ fn cut_events_keep_both_energies_and_refactorise_only_there() {
             // The mass at the start, then one factorisation per model (the first step after each event).
             assert_eq!(sw.factorisations, 2 + sw.events.len());
         }
+        // The steps the sweep index let pass could not have changed the set-up:
+        // the events are those of a full check after every step.
+        let mut full = Vec::new();
+        let mut last = cuts.setup_at(&mesh, 0.0).unwrap();
+        for k in 1..=opts.steps {
+            let t = k as f64 * opts.dt;
+            let s = cuts.setup_at(&mesh, t).unwrap();
+            if !xfem_cut::blade::same_setup(last.as_ref(), s.as_ref()) {
+                full.push(k);
+            }
+            last = s;
+        }
+        let got: Vec<usize> = sw.events.iter().map(|e| e.step).collect();
+        assert_eq!(got, full, "events vs a full check after every step");
+        assert!(sw.checks < opts.steps);
         // The completed sweep is the patch's set-up.
         let full = setup_cut(&mesh, &[&patch()], DEFAULT_SNAP).unwrap();
         assert_eq!(run.model.cut.as_ref().unwrap().enriched, full.enriched);
