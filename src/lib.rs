@@ -13,6 +13,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod assembly;
+pub mod blade;
 pub mod corotation;
 pub mod cut;
 pub mod dynamics;
@@ -31,3 +32,4 @@ pub mod scene;
 pub mod solve;
 pub mod statics;
 pub mod study;
+pub mod surface;
