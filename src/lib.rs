@@ -13,23 +13,23 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod assembly;
-pub mod converge;
+pub mod blade;
 pub mod corotation;
 pub mod cut;
 pub mod dynamics;
 pub mod element;
 pub mod io;
+pub mod kernel;
 pub mod locate;
+pub mod mass;
 pub mod material;
 pub mod mesh;
 pub mod model;
 pub mod output;
 pub mod quadrature;
-pub mod reference;
-pub mod report;
 pub mod run;
 pub mod scene;
 pub mod solve;
 pub mod statics;
-pub mod stress;
-pub mod verify;
+pub mod study;
+pub mod surface;
