@@ -50,7 +50,7 @@ fn main() {
                 continue;
             }
             for cut in [false, true] {
-                if (element == "tet4" && a < 6) || (element == "tet10" && a == 6) {
+                if element == "tet10" && a == 6 {
                     continue;
                 }
                 let m = model(div, element, cut);
