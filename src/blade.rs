@@ -360,10 +360,16 @@ impl CutSet {
 /// (all vertices on one side, farther than twice the snapping distance)
 /// never change. A path's strip moves, so every step of its sweep is checked.
 struct SweepIndex {
-    /// Per straight blade: start, end, (t_min, t_max) of the elements its plane reaches, sorted.
-    straight: Vec<(f64, f64, Vec<(f64, f64)>)>,
+    straight: Vec<StraightSweep>,
     /// Sweep spans of the other blades.
     paths: Vec<(f64, f64)>,
+}
+
+/// A straight blade's span and the (t_min, t_max) of the elements its plane reaches, sorted.
+struct StraightSweep {
+    start: f64,
+    end: f64,
+    ranges: Vec<(f64, f64)>,
 }
 
 impl SweepIndex {
@@ -415,7 +421,11 @@ impl SweepIndex {
                 ranges.push((tmin, tmax));
             }
             ranges.sort_by(|a, b| a.0.total_cmp(&b.0));
-            straight.push((b.start(), b.end(), ranges));
+            straight.push(StraightSweep {
+                start: b.start(),
+                end: b.end(),
+                ranges,
+            });
         }
         SweepIndex { straight, paths }
     }
@@ -427,13 +437,16 @@ impl SweepIndex {
             return true;
         }
         let margin = 1e-6;
-        self.straight.iter().any(|(start, end, ranges)| {
-            if !active(*start, *end) {
+        self.straight.iter().any(|sw| {
+            if !active(sw.start, sw.end) {
                 return false;
             }
-            let frac = |t: f64| ((t - start) / (end - start)).clamp(0.0, 1.0);
+            let frac = |t: f64| ((t - sw.start) / (sw.end - sw.start)).clamp(0.0, 1.0);
             let (f0, f1) = (frac(t0) - margin, frac(t1) + margin);
-            ranges.iter().take_while(|r| r.0 <= f1).any(|r| r.1 >= f0)
+            sw.ranges
+                .iter()
+                .take_while(|r| r.0 <= f1)
+                .any(|r| r.1 >= f0)
         })
     }
 }
