@@ -678,7 +678,7 @@ pub fn run_dynamic(
         };
         let Some(setup) = grown else {
             sweep.factorisations += nm.factorisations() - counted;
-            let (state, _) = nm.into_parts();
+            let state = nm.state.clone();
             sweep.dofs_last = model.n_dofs();
             return Ok(Progressive {
                 model,
@@ -690,7 +690,8 @@ pub fn run_dynamic(
         let t = Instant::now();
         let before = nm.energies();
         sweep.factorisations += nm.factorisations() - counted;
-        let (state, old_chol) = nm.into_parts();
+        let state = nm.state.clone();
+        let old_chol = nm.into_cholesky();
         let new_model = build(setup)?;
         let mapped = map_state(&model, &new_model, &state);
         let pattern_changed = new_model.pattern.col_ptr != model.pattern.col_ptr

@@ -14,24 +14,22 @@
 
 pub mod assembly;
 pub mod blade;
-pub mod converge;
 pub mod corotation;
 pub mod cut;
 pub mod dynamics;
 pub mod element;
 pub mod io;
+pub mod kernel;
 pub mod locate;
+pub mod mass;
 pub mod material;
 pub mod mesh;
 pub mod model;
 pub mod output;
 pub mod quadrature;
-pub mod reference;
-pub mod report;
 pub mod run;
 pub mod scene;
 pub mod solve;
 pub mod statics;
-pub mod stress;
+pub mod study;
 pub mod surface;
-pub mod verify;

@@ -13,15 +13,17 @@
 //! numbered nodes first, then enriched nodes (the vector [u₁…u_N a₁…a_Nenr] of
 //! eq. 74). Dirichlet DOFs are eliminated: only free DOFs enter the matrix.
 
-use crate::corotation::polar_rotation;
 use crate::cut::{psi, CutSetup, ElementCut};
 use crate::element::{barycentric_gradients, shape_gradients, shape_values};
 use crate::material::{Lame, Material};
 use crate::mesh::{tet_volume, ElementKind, TetMesh};
 use crate::quadrature::{self, QuadPoint};
 use crate::solve::Pattern;
-use nalgebra::{Matrix3, Point3, Vector3};
+use nalgebra::{Point3, Vector3};
 use std::ops::Range;
+
+pub use crate::kernel::{group_rotation, GroupKernel};
+use crate::mass::lump_cell_mass;
 
 /// Marker for a DOF that is not in the system (prescribed), or an entry not stored.
 pub const NONE: u32 = u32::MAX;
@@ -600,41 +602,6 @@ fn eval_shapes(
     }
 }
 
-/// Lumped mass of one integration cell per node of its element.
-///
-/// Tet4: the row sum of the cell's consistent mass, ρ∫_cell N_k (positive).
-/// Tet10: HRZ, the cell mass ρV_cell shared in proportion to ∫_cell N_k²,
-/// because the row sum gives zero or negative vertex masses on Tet10.
-///
-/// Each cell's share goes to the DOF that moves that side, u_k + ψ a_k:
-/// M^uu += m, M^aa += ψ² m, M^ua += ψ m. Summed over the cells this is the
-/// seed's eq. (81)–(82) (with ∫N_k in place of the volume fractions) plus the
-/// coupling M^ua the seed drops; with it a part freed by the cut keeps exactly
-/// its own inertia and falls with g.
-fn lump_cell_mass(
-    kind: ElementKind,
-    rho: f64,
-    cell_volume: f64,
-    int_n: &[f64; 10],
-    int_n2: &[f64; 10],
-) -> [f64; 10] {
-    let mut share = [0.0; 10];
-    match kind {
-        ElementKind::Tet4 => {
-            for k in 0..4 {
-                share[k] = rho * int_n[k];
-            }
-        }
-        ElementKind::Tet10 => {
-            let sum: f64 = int_n2.iter().sum();
-            for k in 0..10 {
-                share[k] = rho * cell_volume * int_n2[k] / sum;
-            }
-        }
-    }
-    share
-}
-
 /// Equation numbers of an element's local DOFs (3 per shape function).
 pub fn element_equations(shapes: &[u32], equation: &[u32]) -> Vec<u32> {
     shapes
@@ -672,154 +639,6 @@ fn add_traction(mesh: &TetMesh, t: &Traction, load: &mut [f64]) {
                 }
             }
         }
-    }
-}
-
-/// Per-group kernel: deformation gradient, rotation, stress, forces, tangent.
-///
-/// Seed eq. (36)–(40): f = R K (Rᵀx − x₀), tangent R K Rᵀ, with K of eq. (30).
-/// K_ab = w (λ g_a g_bᵀ + μ g_b g_aᵀ + μ (g_a·g_b) I), so R K_ab Rᵀ is built from
-/// the rotated gradients R g_a without storing K.
-pub struct GroupKernel<'a> {
-    pub lame: Lame,
-    pub weight: f64,
-    pub grads: &'a [Vector3<f64>],
-    pub rotation: Matrix3<f64>,
-}
-
-impl<'a> GroupKernel<'a> {
-    /// Deformation gradient F = I + Σ_a d_a ⊗ ∇φ_a of the group.
-    pub fn deformation_gradient(
-        grads: &[Vector3<f64>],
-        disp: impl Fn(usize) -> Vector3<f64>,
-    ) -> Matrix3<f64> {
-        let mut f = Matrix3::identity();
-        for (a, g) in grads.iter().enumerate() {
-            f += disp(a) * g.transpose();
-        }
-        f
-    }
-
-    /// Local (unrotated) small strain ε = sym(RᵀF) − I.
-    pub fn strain(&self, f: &Matrix3<f64>) -> Matrix3<f64> {
-        let rf = self.rotation.transpose() * f;
-        (rf + rf.transpose()) * 0.5 - Matrix3::identity()
-    }
-
-    /// Stress σ = λ tr(ε) I + 2μ ε.
-    pub fn stress(&self, eps: &Matrix3<f64>) -> Matrix3<f64> {
-        Matrix3::identity() * (self.lame.lambda * eps.trace()) + eps * (2.0 * self.lame.mu)
-    }
-
-    /// Strain energy of the group, w (μ ε:ε + λ/2 tr(ε)²).
-    pub fn energy(&self, eps: &Matrix3<f64>) -> f64 {
-        self.weight
-            * (self.lame.mu * eps.norm_squared() + 0.5 * self.lame.lambda * eps.trace().powi(2))
-    }
-
-    /// Internal forces f_a = w R σ ∇φ_a (adds to `out`, one per shape function).
-    pub fn add_forces(&self, sigma: &Matrix3<f64>, mut out: impl FnMut(usize, Vector3<f64>)) {
-        let rs = self.rotation * sigma * self.weight;
-        for (a, g) in self.grads.iter().enumerate() {
-            out(a, rs * g);
-        }
-    }
-
-    /// The tangent R K Rᵀ block by block, for b ≤ a only (the matrix is
-    /// symmetric): calls `add(a, b, block)` with the 3×3 block (a, b).
-    pub fn tangent_blocks(
-        &self,
-        rotated: &mut [Vector3<f64>],
-        mut add: impl FnMut(usize, usize, &Matrix3<f64>),
-    ) {
-        let (lambda, mu, w) = (self.lame.lambda, self.lame.mu, self.weight);
-        for (r, g) in rotated.iter_mut().zip(self.grads) {
-            *r = self.rotation * g;
-        }
-        for a in 0..self.grads.len() {
-            let ra = rotated[a] * w;
-            for b in 0..=a {
-                let rb = rotated[b];
-                let dot = mu * w * self.grads[a].dot(&self.grads[b]);
-                let mut block = ra * rb.transpose() * lambda + rb * ra.transpose() * mu;
-                block[(0, 0)] += dot;
-                block[(1, 1)] += dot;
-                block[(2, 2)] += dot;
-                add(a, b, &block);
-            }
-        }
-    }
-
-    /// The exact tangent of the corotational forces (the derivative of the
-    /// polar rotation included), block by block for b ≤ a, at deformation
-    /// gradient `f` whose polar rotation is `self.rotation`:
-    ///
-    /// K_ab[i][j] = w (2μ δ_ij ∇φ_a·∇φ_b + λ (R∇φ_a)_i (R∇φ_b)_j
-    ///              + (λ tr ε − 2μ) (R (v_jb × ∇φ_a))_i),
-    /// v_jb = (tr S I − S)⁻¹ (∇φ_b × Rᵀe_j), S = RᵀF,
-    ///
-    /// from dP = 2μ (dF − dR) + λ tr(RᵀdF) R + λ tr ε dR, dR = R W with
-    /// (tr S I − S) axial(W) = axial(RᵀdF − dFᵀR) (refs/README.md derives it).
-    /// R K Rᵀ drops the dR terms; they are the geometric stiffness that a
-    /// slender body in bending needs for Newton to converge. Returns false
-    /// (and adds nothing) where tr S I − S is singular (a degenerate element),
-    /// so the caller can use R K Rᵀ for the group.
-    pub fn exact_tangent_blocks(
-        &self,
-        f: &Matrix3<f64>,
-        rotated: &mut [Vector3<f64>],
-        v: &mut [[Vector3<f64>; 3]],
-        mut add: impl FnMut(usize, usize, &Matrix3<f64>),
-    ) -> bool {
-        let (lambda, mu, w) = (self.lame.lambda, self.lame.mu, self.weight);
-        let r = self.rotation;
-        let s = r.transpose() * f;
-        let s = (s + s.transpose()) * 0.5;
-        let tr = s.trace();
-        let z = Matrix3::identity() * tr - s;
-        let scale = tr.abs().max(1.0);
-        if z.determinant().abs() <= 1e-10 * scale * scale * scale {
-            return false;
-        }
-        let Some(z_inv) = z.try_inverse() else {
-            return false;
-        };
-        let c = lambda * (tr - 3.0) - 2.0 * mu;
-        for (b, g) in self.grads.iter().enumerate() {
-            rotated[b] = r * g;
-            for j in 0..3 {
-                let rj = Vector3::new(r[(j, 0)], r[(j, 1)], r[(j, 2)]);
-                v[b][j] = z_inv * g.cross(&rj);
-            }
-        }
-        for a in 0..self.grads.len() {
-            let ga = self.grads[a];
-            for b in 0..=a {
-                let dot = 2.0 * mu * ga.dot(&self.grads[b]);
-                let mut block = rotated[a] * rotated[b].transpose() * lambda;
-                for j in 0..3 {
-                    let col = r * v[b][j].cross(&ga) * c;
-                    for i in 0..3 {
-                        block[(i, j)] += col[i];
-                    }
-                    block[(j, j)] += dot;
-                }
-                add(a, b, &(block * w));
-            }
-        }
-        true
-    }
-}
-
-/// Rotation of a group for the formulation (identity for linear).
-pub fn group_rotation(
-    formulation: Formulation,
-    f: &Matrix3<f64>,
-    guess: &Matrix3<f64>,
-) -> Matrix3<f64> {
-    match formulation {
-        Formulation::Linear => Matrix3::identity(),
-        Formulation::Corotational => polar_rotation(f, guess),
     }
 }
 

@@ -8,6 +8,7 @@
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky,
     SymmetricOrdering,
@@ -86,6 +87,56 @@ impl Pattern {
     }
 }
 
+/// How many threads the numeric factorisation and the solves use (faer's
+/// `Par`): one setting, passed in, for the whole solver.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Parallelism {
+    threads: usize,
+}
+
+impl Parallelism {
+    /// One thread (faer's `Par::Seq`).
+    pub const SEQUENTIAL: Parallelism = Parallelism { threads: 1 };
+
+    /// `threads` threads (0: rayon's current thread count).
+    pub fn threads(threads: usize) -> Parallelism {
+        let threads = if threads == 0 {
+            rayon::current_num_threads()
+        } else {
+            threads
+        };
+        Parallelism { threads }
+    }
+
+    pub fn n_threads(self) -> usize {
+        self.threads
+    }
+
+    fn faer(self) -> Par {
+        if self.threads <= 1 {
+            Par::Seq
+        } else {
+            Par::rayon(self.threads)
+        }
+    }
+}
+
+impl Default for Parallelism {
+    fn default() -> Self {
+        Parallelism::SEQUENTIAL
+    }
+}
+
+/// The fill-reducing ordering of the symbolic factorisation.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub enum Ordering {
+    /// faer's approximate minimum degree.
+    #[default]
+    Amd,
+    /// A permutation given by the caller: `perm[new] = old` (e.g. nested dissection).
+    Custom(Vec<usize>),
+}
+
 /// Sparse Cholesky LLᵀ with the symbolic analysis done once.
 pub struct Cholesky {
     pattern: Pattern,
@@ -94,22 +145,59 @@ pub struct Cholesky {
     factor_mem: MemBuffer,
     solve_mem: MemBuffer,
     factored: bool,
+    par: Par,
     /// Number of numeric factorisations done (a work counter tests can pin).
     pub factorisations: usize,
 }
 
 impl Cholesky {
-    /// Symbolic factorisation of `pattern` (once per pattern).
+    /// Symbolic factorisation of `pattern` (once per pattern), AMD ordering, one thread.
     pub fn new(pattern: &Pattern) -> Result<Cholesky, SolveError> {
+        Cholesky::with(pattern, &Ordering::Amd, Parallelism::SEQUENTIAL)
+    }
+
+    /// Symbolic factorisation of `pattern` with `ordering`; the numeric
+    /// factorisations and solves run with `parallelism`. Rebuild it when the
+    /// pattern changes (DOFs added at a cut event).
+    pub fn with(
+        pattern: &Pattern,
+        ordering: &Ordering,
+        parallelism: Parallelism,
+    ) -> Result<Cholesky, SolveError> {
+        let par = parallelism.faer();
+        let inverse;
+        let faer_ordering = match ordering {
+            Ordering::Amd => SymmetricOrdering::Amd,
+            Ordering::Custom(perm) => {
+                if perm.len() != pattern.n {
+                    return Err(SolveError::Symbolic(format!(
+                        "ordering of {} entries for a matrix of order {}",
+                        perm.len(),
+                        pattern.n
+                    )));
+                }
+                let mut inv = vec![usize::MAX; perm.len()];
+                for (new, &old) in perm.iter().enumerate() {
+                    if old >= perm.len() || inv[old] != usize::MAX {
+                        return Err(SolveError::Symbolic(
+                            "the ordering is not a permutation".into(),
+                        ));
+                    }
+                    inv[old] = new;
+                }
+                inverse = inv;
+                SymmetricOrdering::Custom(PermRef::new_checked(perm, &inverse, perm.len()))
+            }
+        };
         let symbolic = factorize_symbolic_cholesky(
             pattern.symbolic(),
             Side::Lower,
-            SymmetricOrdering::Amd,
+            faer_ordering,
             CholeskySymbolicParams::default(),
         )
         .map_err(|e| SolveError::Symbolic(format!("{e:?}")))?;
-        let factor_req = symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Spec::default());
-        let solve_req = symbolic.solve_in_place_scratch::<f64>(1, Par::Seq);
+        let factor_req = symbolic.factorize_numeric_llt_scratch::<f64>(par, Spec::default());
+        let solve_req = symbolic.solve_in_place_scratch::<f64>(1, par);
         Ok(Cholesky {
             pattern: pattern.clone(),
             l_values: vec![0.0; symbolic.len_val()],
@@ -117,6 +205,7 @@ impl Cholesky {
             factor_mem: MemBuffer::new(factor_req),
             solve_mem: MemBuffer::new(solve_req),
             factored: false,
+            par,
             factorisations: 0,
         })
     }
@@ -137,7 +226,7 @@ impl Cholesky {
                 a,
                 Side::Lower,
                 LltRegularization::default(),
-                Par::Seq,
+                self.par,
                 MemStack::new(&mut self.factor_mem),
                 Spec::default(),
             )
@@ -156,7 +245,7 @@ impl Cholesky {
         let llt = LltRef::<usize, f64>::new(&self.symbolic, &self.l_values);
         let n = b.len();
         let rhs = MatMut::from_column_major_slice_mut(b, n, 1);
-        llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(&mut self.solve_mem));
+        llt.solve_in_place_with_conj(Conj::No, rhs, self.par, MemStack::new(&mut self.solve_mem));
     }
 }
 
