@@ -607,14 +607,16 @@ pub struct Progressive {
 
 /// Runs a dynamic scene whose cuts may grow: `build` makes the model of the
 /// mesh with a cut set-up (the scene's loads, fixes, material);
-/// `observe(step, model, state)` sees every step (frames, probes, energies).
+/// `observe(step, model, integrator)` sees the start and every step: the
+/// state is `integrator.state`, `integrator.energies()` its energies (frames,
+/// probes, energy series).
 /// Starts at rest with the acceleration of the loads.
 pub fn run_dynamic(
     cuts: &CutSet,
     mesh: &TetMesh,
     build: &dyn Fn(Option<CutSetup>) -> Result<Model, ModelError>,
     opts: DynamicOptions,
-    mut observe: impl FnMut(usize, &Model, &State),
+    mut observe: impl FnMut(usize, &Model, &mut Newmark<'_>),
 ) -> Result<Progressive, BladeError> {
     // The scene's blades must cut the body and keep clear of the other cuts.
     cuts.completed(mesh)?;
@@ -638,7 +640,7 @@ pub fn run_dynamic(
         match carried.take() {
             None => {
                 nm.initialise_acceleration()?;
-                observe(0, &model, &nm.state);
+                observe(0, &model, &mut nm);
             }
             Some((state, mut event)) => {
                 nm.state = state;
@@ -658,7 +660,7 @@ pub fn run_dynamic(
             let step_time = t.elapsed().as_secs_f64();
             sweep.step_seconds += step_time;
             step += 1;
-            observe(step, &model, &nm.state);
+            observe(step, &model, &mut nm);
             let t = Instant::now();
             let t_now = nm.state.time;
             let setup = if index.may_change(t_now - opts.dt, t_now) {
