@@ -795,8 +795,13 @@ impl Scene {
                 .iter()
                 .filter_map(|c| c.snap)
                 .fold(crate::cut::DEFAULT_SNAP, |_, s| s);
+            // Today's behaviour until the schema's `front`/`tip_radius` are wired (issue 11).
+            let inputs: Vec<crate::cut::CutInput> = surfaces
+                .iter()
+                .map(|s| crate::cut::CutInput::extend(*s, snap))
+                .collect();
             Some(
-                crate::cut::setup_cut(&mesh, &surfaces, snap).map_err(|e| SceneError::Model {
+                crate::cut::setup_cut(&mesh, &inputs).map_err(|e| SceneError::Model {
                     file: file.clone(),
                     message: e.to_string(),
                 })?,
