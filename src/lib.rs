@@ -13,10 +13,12 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod assembly;
+pub mod blade;
 pub mod corotation;
 pub mod cut;
 pub mod dynamics;
 pub mod element;
+pub mod front;
 pub mod io;
 pub mod kernel;
 pub mod locate;
@@ -33,3 +35,4 @@ pub mod setup;
 pub mod solve;
 pub mod statics;
 pub mod study;
+pub mod surface;
