@@ -31,7 +31,7 @@ CONVERGE_COROT_CSV := reports/data/convergence_corot.csv
 STRESS_CSV := reports/data/stress.csv
 
 # The main job: references, the convergence study, the benches, the report.
-report: build $(if $(wildcard refs/refs.mk),refs) $(CONVERGE_CSV) $(CONVERGE_COROT_CSV) $(STRESS_CSV) bench-report
+report: build $(if $(wildcard refs/refs.mk),refs) $(CONVERGE_CSV) $(CONVERGE_COROT_CSV) $(STRESS_CSV) bench-report $(if $(wildcard refs/refs.mk),pictures)
 	$(CARGO) run --release -- report
 
 # Re-run the study when the solver, a case or a reference changed.

@@ -18,14 +18,22 @@ from pathlib import Path
 from common import CASES, OUT, ROOT, file_hash, write_json
 
 PY = "/usr/bin/python3"
-# Mesh size per level (m); the last level is the fine reference (P2).
+# Mesh size per level (m).
 LEVELS = [0.012, 0.008, 0.006, 0.0045, 0.0035]
-FINE = 0.0028
+# The graded references (P2): (far-field size, size at the singular curves) in m. The finest
+# judged level is L4 (3.5 mm): "fine" has 1/4.4 of it at the front and is finer everywhere;
+# "fine_coarse" is 1.4x coarser everywhere, and their difference is the reference's own error.
+GRADED = {"fine": (0.0032, 0.0008), "fine_coarse": (0.0032 * 1.4, 0.0008 * 1.4)}
+# The old reference (uniform 2.8 mm, P2), kept only to state its error against the graded one;
+# too big for MUMPS within ~8 GB here, so solved with CG + GAMG (set "uniform").
+UNIFORM_FINE = 0.0028
 FAMILY = {"gravity": "beam_crack", "stretch": "beam_crack", "bend": "beam_crack", "stretch_face": "beam_crack",
           "bend_face": "beam_crack", "slice": "slice_precut"}
 SETS = {
     "test": {"levels": [0, 1], "fine": False},
+    "graded": {"levels": list(range(len(LEVELS))), "fine": True, "solve_levels": False},
     "all": {"levels": list(range(len(LEVELS))), "fine": True},
+    "uniform": {"levels": [], "fine": False, "uniform": True},
 }
 VENV_PY = str(ROOT / ".venv" / "bin" / "python")
 # Corotational references (scikit-fem): (case, family, level, degree, load steps, load scale,
@@ -60,6 +68,48 @@ def run(cmd: list[str], what: str) -> None:
     print(f"  done  {what} ({time.perf_counter() - t0:.1f} s)", flush=True)
 
 
+def own_error(case: str, family: str, manifest_path: Path) -> None:
+    """The reference's own error: its difference from the 1.4x coarser graded reference,
+    recorded in the manifest (cached by the hashes of both solutions)."""
+    fine = OUT / case / f"{family}_fine" / "p2.vtu"
+    coarse = OUT / case / f"{family}_fine_coarse" / "p2.vtu"
+    target = OUT / case / "own_error.json"
+    hh = file_hash(ROOT / "own_error.py", fine.with_name("p2.vtu.hash"), coarse.with_name("p2.vtu.hash"))
+    if not up_to_date(target, hh):
+        run([PY, "own_error.py", case, str(fine), str(coarse), str(target)], f"own error of the {case} reference")
+        mark(target, hh)
+    manifest = json.loads(manifest_path.read_text())
+    manifest["own_error"] = json.loads(target.read_text())
+    write_json(manifest_path, manifest)
+
+
+QUALITY_CSV = ROOT.parent / "reports" / "data" / "references.csv"
+QUALITY_HEADER = "case,family,dofs,front_h,far_h,coarse_dofs,coarse_front_h,own_l2,own_opening,own_probes"
+
+
+def write_quality() -> None:
+    """reports/data/references.csv: per case, the graded reference's size and own error (read
+    by `xfem-cut report` and the tests; committed with the study's CSVs)."""
+    rows = []
+    for case, family in FAMILY.items():
+        path = OUT / case / "manifest.json"
+        if not path.exists():
+            continue
+        m = json.loads(path.read_text())
+        fine, coarse, own = m.get(f"{family}_fine/p2"), m.get(f"{family}_fine_coarse/p2"), m.get("own_error")
+        if not (fine and coarse and own and "mesh_sizes" in fine and "mesh_sizes" in coarse):
+            continue
+        num = lambda v: "nan" if v is None else repr(float(v))
+        rows.append(",".join([case, family, str(fine["dofs"]), num(fine["mesh_sizes"]["singular_h_mean"]),
+                              num(fine["mesh_sizes"]["h_far"]), str(coarse["dofs"]),
+                              num(coarse["mesh_sizes"]["singular_h_mean"]), num(own["l2_rel"]),
+                              num(own["opening_rel"]), num(own["probe_rel"])]))
+    if rows:
+        QUALITY_CSV.parent.mkdir(parents=True, exist_ok=True)
+        QUALITY_CSV.write_text("\n".join([QUALITY_HEADER] + rows) + "\n")
+        print(f"refs: {len(rows)} reference qualities in {QUALITY_CSV}", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--set", choices=SETS, default="all")
@@ -71,29 +121,37 @@ def main() -> None:
     mesh_jobs = []
     for family in ["beam_crack", "beam_uncut", "slice_precut"]:
         for k in chosen["levels"]:
-            mesh_jobs.append((family, f"L{k}", LEVELS[k]))
-        if chosen["fine"] and family != "beam_uncut":
-            mesh_jobs.append((family, "fine", FINE))
+            mesh_jobs.append((family, f"L{k}", LEVELS[k], None))
+        if family == "beam_uncut":
+            continue
+        if chosen["fine"]:
+            mesh_jobs += [(family, name, h, front) for name, (h, front) in GRADED.items()]
+        if chosen.get("uniform"):
+            mesh_jobs.append((family, "uniform", UNIFORM_FINE, None))
     print(f"refs: {len(mesh_jobs)} meshes, set '{a.set}', {a.np} rank(s), tools {versions}", flush=True)
     mesh_hash = {}
-    for family, name, h in mesh_jobs:
+    for family, name, h, front in mesh_jobs:
         target = OUT / "meshes" / family / f"{name}.msh"
-        hh = file_hash(ROOT / "mesh.py", extra=f"{family} {h} {versions}")
+        hh = file_hash(ROOT / "mesh.py", ROOT / "common.py", extra=f"{family} {h} {front} {versions}")
         mesh_hash[(family, name)] = hh
         if up_to_date(target, hh):
             print(f"  skip  mesh {family}/{name} (up to date)", flush=True)
             continue
-        run([PY, "mesh.py", family, str(h), str(target)], f"mesh {family}/{name} h={h}")
+        cmd = [PY, "mesh.py", family, str(h), str(target)] + ([] if front is None else ["--front", str(front)])
+        run(cmd, f"mesh {family}/{name} h={h}" + ("" if front is None else f" front={front}"))
         mark(target, hh)
 
     for case in a.cases:
         family = FAMILY[case]
-        names = [f"L{k}" for k in chosen["levels"]] + (["fine"] if chosen["fine"] else [])
+        # The graded references first: the study needs them, the levels only the tests.
+        names = (list(GRADED) if chosen["fine"] else []) + (["uniform"] if chosen.get("uniform") else [])
+        if chosen.get("solve_levels", True):
+            names += [f"L{k}" for k in chosen["levels"]]
         manifest_path = OUT / case / "manifest.json"
         manifest = json.loads(manifest_path.read_text()) if manifest_path.exists() else {}
         for name in names:
             msh = OUT / "meshes" / family / f"{name}.msh"
-            for degree in ([2] if name == "fine" else [1, 2]):
+            for degree in ([1, 2] if name.startswith("L") else [2]):
                 target = OUT / case / f"{family}_{name}" / f"p{degree}.vtu"
                 hh = file_hash(ROOT / "solve_fenicsx.py", ROOT / "common.py", CASES / f"{case}.toml",
                                extra=f"{mesh_hash[(family, name)]} {degree} {versions} np={a.np}")
@@ -103,15 +161,22 @@ def main() -> None:
                     continue
                 target.parent.mkdir(parents=True, exist_ok=True)
                 cmd = [PY, "solve_fenicsx.py", case, str(msh), str(degree), str(target)]
+                if name == "uniform":
+                    cmd += ["--solver", "cg"]
                 if a.np > 1:
                     cmd = ["mpirun", "--allow-run-as-root", "--oversubscribe", "-n", str(a.np)] + cmd
                 run(cmd, f"FEniCSx {case} {key}")
                 info = json.loads(target.with_suffix(".json").read_text())
                 info["inputs_hash"] = hh
                 info["tools"] = versions
+                mesh_info = msh.with_suffix(".json")
+                if mesh_info.exists():
+                    info["mesh_sizes"] = json.loads(mesh_info.read_text())
                 manifest[key] = info
                 write_json(manifest_path, manifest)
                 mark(target, hh)
+        if chosen["fine"]:
+            own_error(case, family, manifest_path)
     for case, family, name, degree, steps, scale, ctol in COROT:
         if case not in a.cases or (family, name) not in mesh_hash:
             continue
@@ -126,6 +191,7 @@ def main() -> None:
              "--steps", str(steps), "--scale", str(scale), "--tol", str(ctol)],
             f"scikit-fem corotational {case} {family}_{name}/p{degree} (load x{scale}, {steps} steps)")
         mark(target, hh)
+    write_quality()
     print("refs: done", flush=True)
 
 

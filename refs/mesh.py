@@ -10,6 +10,7 @@ share no node. Planes x = 0.005 and x = 0.025 are embedded too, so the top-face 
 from __future__ import annotations
 
 import argparse
+import json
 import math
 from pathlib import Path
 
@@ -17,10 +18,14 @@ import gmsh
 import meshio
 import numpy as np
 
+from common import write_json
+
 BOX = (0.03, 0.06, 0.2)
 CRACK_Z, FRONT_X = 0.1, 0.015
 SLICE_ORIGIN = np.array([0.0, 0.0, 0.09])
 SLICE_NORMAL = np.array([-0.02, 0.0, 0.03]) / math.hypot(0.02, 0.03)
+# Growth of the element size per unit distance from the singular curves in graded meshes.
+GRADING = 0.4
 
 
 def build_geometry(family: str) -> None:
@@ -44,7 +49,42 @@ def build_geometry(family: str) -> None:
     occ.synchronize()
 
 
-def generate(family: str, h: float) -> tuple[np.ndarray, np.ndarray]:
+def singular_curves(family: str) -> list[int]:
+    """The curves where the solution is singular: the crack front (beam_crack), the edges of
+    the clamped faces z = 0 and z = 0.2 (slice_precut). OCC boxes are inflated: tolerance 1e-5."""
+    found = []
+    for dim, tag in gmsh.model.getEntities(1):
+        x0, y0, z0, x1, y1, z1 = gmsh.model.getBoundingBox(dim, tag)
+        if family == "beam_crack":
+            hit = abs(x0 - FRONT_X) < 1e-5 and abs(x1 - FRONT_X) < 1e-5 and abs(z0 - CRACK_Z) < 1e-5 and abs(z1 - CRACK_Z) < 1e-5
+        elif family == "slice_precut":
+            hit = z1 < 1e-5 or z0 > BOX[2] - 1e-5
+        else:
+            hit = False
+        if hit:
+            found.append(tag)
+    if not found:
+        raise RuntimeError(f"{family}: no singular curve found to grade towards")
+    return found
+
+
+def grade(family: str, h_front: float, h_far: float) -> None:
+    """Graded size field (Distance to the singular curves + Threshold): h_front up to 2 h_front
+    from the curves, then growing by GRADING per unit distance up to h_far."""
+    field = gmsh.model.mesh.field
+    dist = field.add("Distance")
+    field.setNumbers(dist, "CurvesList", singular_curves(family))
+    field.setNumber(dist, "NumPointsPerCurve", int(np.ceil(BOX[1] / h_front)) * 4)
+    thr = field.add("Threshold")
+    field.setNumber(thr, "InField", dist)
+    field.setNumber(thr, "SizeMin", h_front)
+    field.setNumber(thr, "SizeMax", h_far)
+    field.setNumber(thr, "DistMin", 2 * h_front)
+    field.setNumber(thr, "DistMax", 2 * h_front + (h_far - h_front) / GRADING)
+    field.setAsBackgroundMesh(thr)
+
+
+def generate(family: str, h: float, h_front: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     gmsh.initialize()
     try:
         gmsh.option.setNumber("General.Terminal", 0)
@@ -53,9 +93,12 @@ def generate(family: str, h: float) -> tuple[np.ndarray, np.ndarray]:
         gmsh.model.add(family)
         build_geometry(family)
         gmsh.option.setNumber("Mesh.MeshSizeMax", h)
-        gmsh.option.setNumber("Mesh.MeshSizeMin", 0.2 * h)
+        gmsh.option.setNumber("Mesh.MeshSizeMin", 0.2 * (h if h_front is None else h_front))
         gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
         gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+        if h_front is not None:
+            gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+            grade(family, h_front, h)
         gmsh.option.setNumber("Mesh.Algorithm3D", 1)
         gmsh.model.mesh.generate(3)
         tags, coords, _ = gmsh.model.mesh.getNodes()
@@ -86,8 +129,8 @@ def duplicate(points: np.ndarray, tets: np.ndarray, on_cut: np.ndarray, above: n
     return np.vstack([points, points[cut_nodes]]), tets
 
 
-def make(family: str, h: float) -> tuple[np.ndarray, np.ndarray, int]:
-    points, tets = generate(family, h)
+def make(family: str, h: float, h_front: float | None = None) -> tuple[np.ndarray, np.ndarray, int]:
+    points, tets = generate(family, h, h_front)
     centroid = points[tets].mean(axis=1)
     tol = 1e-9
     if family == "beam_crack":
@@ -133,6 +176,30 @@ def check(family: str, points: np.ndarray, tets: np.ndarray, n_dup: int) -> None
         assert len(users_copy) == n_dup and not (users_copy & users_orig)
 
 
+def singular_edge_sizes(family: str, points: np.ndarray, tets: np.ndarray) -> dict:
+    """Lengths of the mesh edges that lie on the singular curves (the element size there)."""
+    x = points
+    if family == "beam_crack":
+        on = (np.abs(x[:, 0] - FRONT_X) < 1e-9) & (np.abs(x[:, 2] - CRACK_Z) < 1e-9)
+    elif family == "slice_precut":
+        on_face = (np.abs(x[:, 2]) < 1e-9) | (np.abs(x[:, 2] - BOX[2]) < 1e-9)
+        on_side = (np.abs(x[:, 0]) < 1e-9) | (np.abs(x[:, 0] - BOX[0]) < 1e-9) | (np.abs(x[:, 1]) < 1e-9) | (np.abs(x[:, 1] - BOX[1]) < 1e-9)
+        on = on_face & on_side
+    else:
+        return {}
+    lengths = {}
+    for a, b in [(0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3)]:
+        i, j = tets[:, a], tets[:, b]
+        both = on[i] & on[j]
+        # The edge lies on a singular line when its two ends do and it is axis-aligned there.
+        d = x[j[both]] - x[i[both]]
+        straight = np.sum(np.abs(d) > 1e-9, axis=1) == 1
+        for p, q, l in zip(i[both][straight], j[both][straight], np.linalg.norm(d[straight], axis=1)):
+            lengths[(min(p, q), max(p, q))] = l
+    l = np.array(list(lengths.values()))
+    return {"singular_edges": int(len(l)), "singular_h_mean": float(l.mean()), "singular_h_max": float(l.max())}
+
+
 def write_msh(path: Path, points: np.ndarray, tets: np.ndarray) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".tmp.msh")
@@ -145,11 +212,15 @@ def main() -> None:
     ap.add_argument("family", choices=["beam_crack", "beam_uncut", "slice_precut"])
     ap.add_argument("h", type=float, help="mesh size (m)")
     ap.add_argument("out", type=Path)
+    ap.add_argument("--front", type=float, help="graded: element size at the singular curves (m); h is the far field")
     a = ap.parse_args()
-    points, tets, n_dup = make(a.family, a.h)
+    points, tets, n_dup = make(a.family, a.h, a.front)
     check(a.family, points, tets, n_dup)
     write_msh(a.out, points, tets)
-    print(f"{a.out}: {len(points)} nodes ({n_dup} duplicated), {len(tets)} tets")
+    info = {"family": a.family, "h_far": a.h, "h_front_requested": a.front, "nodes": int(len(points)),
+            "tets": int(len(tets)), "duplicated": n_dup, **singular_edge_sizes(a.family, points, tets)}
+    write_json(a.out.with_suffix(".json"), info)
+    print(f"{a.out}: {json.dumps(info)}")
 
 
 if __name__ == "__main__":

@@ -1,12 +1,12 @@
 # The reference pipeline (included by the top-level Makefile).
 REFS_PY := /usr/bin/python3
-REFS_DEBS := python3-dolfinx python3-gmsh python3-meshio python3-scipy libopenblas0-pthread python3-venv openmpi-bin
+REFS_DEBS := python3-dolfinx python3-gmsh python3-meshio python3-scipy python3-matplotlib libopenblas0-pthread python3-venv openmpi-bin
 
-.PHONY: refs-env refs refs-test
+.PHONY: refs-env refs refs-test refs-uniform pictures
 
 # Debian's FEniCSx, gmsh and meshio (with OpenBLAS for a fair MUMPS), installed when missing.
 refs-env:
-	@if ! $(REFS_PY) -c "import dolfinx, gmsh, meshio, scipy" 2>/dev/null || ! dpkg -s libopenblas0-pthread >/dev/null 2>&1; then \
+	@if ! $(REFS_PY) -c "import dolfinx, gmsh, meshio, scipy, matplotlib" 2>/dev/null || ! dpkg -s libopenblas0-pthread >/dev/null 2>&1; then \
 	  echo "refs: installing $(REFS_DEBS)"; \
 	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(REFS_DEBS) >/dev/null; \
 	fi
@@ -24,3 +24,18 @@ refs: refs-env
 # The coarse levels the tests need.
 refs-test: refs-env
 	cd refs && $(REFS_PY) make_refs.py --set test --np $(NP)
+
+# The old reference (uniform 2.8 mm, P2, CG + GAMG): only to measure its error against the graded one.
+refs-uniform: refs-env
+	cd refs && $(REFS_PY) make_refs.py --set uniform --np $(NP)
+
+# Pictures (headless): X-FEM structured level 2 Tet4 with its cut opened beside the graded
+# reference, reports/pictures/<case>.png; remade when the solver, the case or the reference changed.
+PICTURE_CASES := gravity stretch bend stretch_face bend_face slice
+pictures: $(foreach c,$(PICTURE_CASES),reports/pictures/$(c).png)
+
+reports/pictures/%.png: target/release/xfem-cut cases/%.toml refs/pictures.py refs/own_error.py refs/out/%/manifest.json
+	target/release/xfem-cut run cases/$*.toml --level 2 --out out/pictures/$* >/dev/null
+	cd refs && $(REFS_PY) pictures.py $* ../out/pictures/$*/result.vtu \
+	  out/$*/$(if $(filter slice,$*),slice_precut,beam_crack)_fine/p2.vtu ../$@ \
+	  --title "$*: X-FEM structured level 2, Tet4 (left) and the graded FEniCSx P2 reference (right), deformed at true scale"

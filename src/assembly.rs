@@ -20,8 +20,13 @@ impl Rotations {
 
 /// Scratch buffers sized for the largest element.
 pub struct Workspace {
-    rotated: Vec<Vector3<f64>>,
     disp: Vec<Vector3<f64>>,
+    scratch: Scratch,
+}
+
+/// The kernel's scratch (rotated gradients, the exact tangent's v_jb).
+struct Scratch {
+    rotated: Vec<Vector3<f64>>,
     cross: Vec<[Vector3<f64>; 3]>,
 }
 
@@ -34,9 +39,11 @@ impl Workspace {
             .max()
             .unwrap_or(0);
         Workspace {
-            rotated: vec![Vector3::zeros(); m],
             disp: vec![Vector3::zeros(); m],
-            cross: vec![[Vector3::zeros(); 3]; m],
+            scratch: Scratch {
+                rotated: vec![Vector3::zeros(); m],
+                cross: vec![[Vector3::zeros(); 3]; m],
+            },
         }
     }
 }
@@ -50,8 +57,41 @@ pub struct Request<'a> {
     /// Update the rotations from `d` (corotational); otherwise use those stored.
     pub update_rotations: bool,
     /// Corotational: the exact tangent of the forces (rotation derivative
-    /// included; statics) instead of R K Rᵀ (the seed's; dynamics).
+    /// included) instead of R K Rᵀ (the seed's).
     pub exact_tangent: bool,
+}
+
+/// The one gather/group loop of the crate: for each group g of each element,
+/// calls `visit(g, shapes, grads, F, scratch)` with F = I + Σ_a x_a ⊗ ∇φ_a,
+/// the deformation gradient of the nodal vector `x` (all DOFs).
+fn for_each_group(
+    model: &Model,
+    x: &[f64],
+    ws: &mut Workspace,
+    mut visit: impl FnMut(usize, &[u32], &[Vector3<f64>], &Matrix3<f64>, &mut Scratch),
+) {
+    for el in &model.elements {
+        let shapes = &model.shape_ids[el.shapes.clone()];
+        let m = shapes.len();
+        for (a, &s) in shapes.iter().enumerate() {
+            let s = s as usize;
+            ws.disp[a] = Vector3::new(x[3 * s], x[3 * s + 1], x[3 * s + 2]);
+        }
+        for g in el.groups.clone() {
+            let start = model.groups[g].grads as usize;
+            let grads = &model.grads[start..start + m];
+            let f = GroupKernel::deformation_gradient(grads, |a| ws.disp[a]);
+            visit(g, shapes, grads, &f, &mut ws.scratch);
+        }
+    }
+}
+
+/// Adds the element vector `fa` of shape function `a` into the all-DOF vector `out`.
+fn add_nodal(out: &mut [f64], shapes: &[u32], a: usize, fa: &Vector3<f64>) {
+    let s = shapes[a] as usize;
+    for c in 0..3 {
+        out[3 * s + c] += fa[c];
+    }
 }
 
 /// One pass over all groups at displacement `d`: returns the strain energy.
@@ -60,7 +100,22 @@ pub fn evaluate(
     d: &[f64],
     rot: &mut Rotations,
     ws: &mut Workspace,
+    req: Request<'_>,
+) -> f64 {
+    evaluate_damped(model, d, rot, ws, req, 0.0)
+}
+
+/// [`evaluate`] with `damping` × R K Rᵀ added to the requested tangent: the
+/// Newton matrix of a step with stiffness-proportional Rayleigh damping
+/// D = β_R R K Rᵀ, whose velocity derivative brings c₁γβ_R R K Rᵀ beside the
+/// exact tangent of the forces (seed section 3.5).
+pub fn evaluate_damped(
+    model: &Model,
+    d: &[f64],
+    rot: &mut Rotations,
+    ws: &mut Workspace,
     mut req: Request<'_>,
+    damping: f64,
 ) -> f64 {
     if let Some(f) = req.forces.as_deref_mut() {
         f.fill(0.0);
@@ -69,74 +124,86 @@ pub fn evaluate(
         k.fill(0.0);
     }
     let lame = model.lame;
+    let corotational = model.formulation == Formulation::Corotational;
+    let update = req.update_rotations && corotational;
+    let exact = req.exact_tangent && corotational;
     let mut energy = 0.0;
-    for el in &model.elements {
-        let shapes = &model.shape_ids[el.shapes.clone()];
-        let m = shapes.len();
-        for (a, &s) in shapes.iter().enumerate() {
-            let s = s as usize;
-            ws.disp[a] = Vector3::new(d[3 * s], d[3 * s + 1], d[3 * s + 2]);
+    for_each_group(model, d, ws, |g, shapes, grads, f, scratch| {
+        if update {
+            rot.0[g] = group_rotation(model.formulation, f, &rot.0[g]);
         }
-        for g in el.groups.clone() {
-            let group = model.groups[g];
-            let grads = &model.grads[group.grads as usize..group.grads as usize + m];
-            let f = GroupKernel::deformation_gradient(grads, |a| ws.disp[a]);
-            if req.update_rotations && model.formulation == Formulation::Corotational {
-                rot.0[g] = group_rotation(model.formulation, &f, &rot.0[g]);
-            }
-            let kernel = GroupKernel {
-                lame,
-                weight: group.weight,
-                grads,
-                rotation: rot.0[g],
-            };
-            let eps = kernel.strain(&f);
-            energy += kernel.energy(&eps);
-            if let Some(out) = req.forces.as_deref_mut() {
-                let sigma = kernel.stress(&eps);
-                kernel.add_forces(&sigma, |a, fa| {
-                    let s = shapes[a] as usize;
-                    for c in 0..3 {
-                        out[3 * s + c] += fa[c];
-                    }
+        let group = model.groups[g];
+        let kernel = GroupKernel {
+            lame,
+            weight: group.weight,
+            grads,
+            rotation: rot.0[g],
+        };
+        let eps = kernel.strain(f);
+        energy += kernel.energy(&eps);
+        if let Some(out) = req.forces.as_deref_mut() {
+            let sigma = kernel.stress(&eps);
+            kernel.add_forces(&sigma, |a, fa| add_nodal(out, shapes, a, &fa));
+        }
+        if let Some(k) = req.tangent.as_deref_mut() {
+            let m = shapes.len();
+            let el = &model.elements[model.group_element[g] as usize];
+            let map = &model.scatter[el.scatter..el.scatter + 9 * m * m];
+            let scale = 1.0 + damping;
+            let scattered =
+                |k: &mut [f64], scale: f64, a: usize, b: usize, block: &Matrix3<f64>| {
+                    scatter_block(k, map, 3 * m, a, b, block, scale)
+                };
+            let exact_done = exact
+                && kernel.exact_tangent_blocks(
+                    f,
+                    &mut scratch.rotated[..m],
+                    &mut scratch.cross[..m],
+                    |a, b, block| scattered(k, 1.0, a, b, block),
+                );
+            if exact_done {
+                if damping != 0.0 {
+                    kernel.tangent_blocks(&mut scratch.rotated[..m], |a, b, block| {
+                        scattered(k, damping, a, b, block)
+                    });
+                }
+            } else {
+                kernel.tangent_blocks(&mut scratch.rotated[..m], |a, b, block| {
+                    scattered(k, scale, a, b, block)
                 });
             }
-            if let Some(k) = req.tangent.as_deref_mut() {
-                // Each global lower entry is reached from exactly one of (a,b,i,j), (b,a,j,i).
-                let map = &model.scatter[el.scatter..el.scatter + 9 * m * m];
-                let n = 3 * m;
-                let mut add = |a: usize, b: usize, block: &Matrix3<f64>| {
-                    for i in 0..3 {
-                        for j in 0..3 {
-                            let v = block[(i, j)];
-                            let p1 = map[(3 * a + i) * n + 3 * b + j];
-                            if p1 != NONE {
-                                k[p1 as usize] += v;
-                            }
-                            if a != b {
-                                let p2 = map[(3 * b + j) * n + 3 * a + i];
-                                if p2 != NONE {
-                                    k[p2 as usize] += v;
-                                }
-                            }
-                        }
-                    }
-                };
-                let exact = req.exact_tangent
-                    && model.formulation == Formulation::Corotational
-                    && kernel.exact_tangent_blocks(
-                        &f,
-                        &mut ws.rotated[..m],
-                        &mut ws.cross[..m],
-                        &mut add,
-                    );
-                if !exact {
-                    kernel.tangent_blocks(&mut ws.rotated[..m], add);
+        }
+    });
+    energy
+}
+
+/// Adds `scale` × the element block (a, b), b ≤ a, and its transpose (b, a)
+/// through the element's scatter map (n = 3m columns); each global lower entry
+/// is reached from exactly one of (a,b,i,j), (b,a,j,i).
+fn scatter_block(
+    k: &mut [f64],
+    map: &[u32],
+    n: usize,
+    a: usize,
+    b: usize,
+    block: &Matrix3<f64>,
+    scale: f64,
+) {
+    for i in 0..3 {
+        for j in 0..3 {
+            let v = scale * block[(i, j)];
+            let p1 = map[(3 * a + i) * n + 3 * b + j];
+            if p1 != NONE {
+                k[p1 as usize] += v;
+            }
+            if a != b {
+                let p2 = map[(3 * b + j) * n + 3 * a + i];
+                if p2 != NONE {
+                    k[p2 as usize] += v;
                 }
             }
         }
     }
-    energy
 }
 
 /// y += R K Rᵀ z for all DOFs (z over all DOFs), with the stored rotations.
@@ -148,35 +215,30 @@ pub fn tangent_product(
     y: &mut [f64],
 ) {
     let lame = model.lame;
-    for el in &model.elements {
-        let shapes = &model.shape_ids[el.shapes.clone()];
-        let m = shapes.len();
-        for (a, &s) in shapes.iter().enumerate() {
-            let s = s as usize;
-            ws.disp[a] = Vector3::new(z[3 * s], z[3 * s + 1], z[3 * s + 2]);
-        }
-        for g in el.groups.clone() {
-            let group = model.groups[g];
-            let grads = &model.grads[group.grads as usize..group.grads as usize + m];
-            // ∇z, then the local strain of Rᵀz: sym(Rᵀ ∇z).
-            let gz = GroupKernel::deformation_gradient(grads, |a| ws.disp[a]) - Matrix3::identity();
-            let kernel = GroupKernel {
-                lame,
-                weight: group.weight,
-                grads,
-                rotation: rot.0[g],
-            };
-            let rgz = kernel.rotation.transpose() * gz;
-            let eps = (rgz + rgz.transpose()) * 0.5;
-            let sigma = kernel.stress(&eps);
-            kernel.add_forces(&sigma, |a, fa| {
-                let s = shapes[a] as usize;
-                for c in 0..3 {
-                    y[3 * s + c] += fa[c];
-                }
-            });
+    for_each_group(model, z, ws, |g, shapes, grads, f, _| {
+        let kernel = GroupKernel {
+            lame,
+            weight: model.groups[g].weight,
+            grads,
+            rotation: rot.0[g],
+        };
+        // ∇z = F(z) − I, then the local strain of Rᵀz: sym(Rᵀ ∇z).
+        let rgz = kernel.rotation.transpose() * (f - Matrix3::identity());
+        let eps = (rgz + rgz.transpose()) * 0.5;
+        let sigma = kernel.stress(&eps);
+        kernel.add_forces(&sigma, |a, fa| add_nodal(y, shapes, a, &fa));
+    });
+}
+/// The shape function (node, or enriched node) of each free equation: the
+/// blocks of a node-wise fill-reducing ordering (three equations a node).
+pub fn equation_shapes(model: &Model) -> Vec<usize> {
+    let mut shape = vec![0; model.n_free];
+    for (dof, &eq) in model.equation.iter().enumerate() {
+        if eq != NONE {
+            shape[eq as usize] = dof / 3;
         }
     }
+    shape
 }
 
 /// Copies the free part of a full-DOF vector into `out` (by equation number).

@@ -5,9 +5,13 @@
 //! residual r(d) = f_ext − f_int(d) − M a(d) − D v(d), Newton matrix
 //! K_eff = (1 + β_R γ/(βΔt)) K_t + (1/(βΔt²) + α γ/(βΔt)) M.
 //! Linear scenes factorise K_eff once; corotational scenes re-assemble K_t
-//! each iteration and reuse the symbolic factorisation.
+//! each iteration (the exact tangent of the corotational forces by default)
+//! and reuse the symbolic factorisation. After the first step a step
+//! allocates nothing (`tests/alloc.rs` counts).
 
-use crate::assembly::{evaluate, gather_free, tangent_product, Request, Rotations, Workspace};
+use crate::assembly::{
+    evaluate, evaluate_damped, gather_free, tangent_product, Request, Rotations, Workspace,
+};
 use crate::model::{Formulation, Model, NONE};
 use crate::solve::{Cholesky, Pcg, SolveError};
 use crate::statics::norm;
@@ -44,6 +48,11 @@ pub struct DynamicOptions {
     pub tolerance: f64,
     pub max_iterations: usize,
     pub linear_solver: LinearSolver,
+    /// Corotational Newton on the exact tangent c₀M + c₁D + K_exact (the
+    /// rotation's derivative included, as statics uses), falling back to
+    /// R K Rᵀ in an iteration where that is not positive definite; false:
+    /// R K Rᵀ throughout (the seed's).
+    pub exact_tangent: bool,
 }
 
 impl Default for DynamicOptions {
@@ -60,6 +69,7 @@ impl Default for DynamicOptions {
             tolerance: 1e-8,
             max_iterations: 20,
             linear_solver: LinearSolver::Direct,
+            exact_tangent: true,
         }
     }
 }
@@ -98,134 +108,80 @@ pub struct Energies {
 /// Per-step counters.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct StepReport {
+    /// Newton iterations (linear solves) of the step.
     pub iterations: usize,
+    /// Final relative residual.
     pub residual: f64,
+    /// Numeric factorisations of the step.
+    pub factorisations: usize,
+    /// CG iterations of the step (PCG mode).
+    pub cg_iterations: usize,
+    /// Iterations where the exact tangent was not positive definite and R K Rᵀ was used.
+    pub fallbacks: usize,
 }
 
-/// A Newmark integrator borrowing the model; all buffers allocated once.
-pub struct Newmark<'m> {
-    model: &'m Model,
-    opts: DynamicOptions,
-    chol: Cholesky,
-    ws: Workspace,
-    tangent: Vec<f64>,
-    keff: Vec<f64>,
-    f_int: Vec<f64>,
-    r_full: Vec<f64>,
-    r_free: Vec<f64>,
-    kv: Vec<f64>,
-    mv: Vec<f64>,
-    a_new: Vec<f64>,
-    v_new: Vec<f64>,
-    /// Whether a factorisation of K_eff exists (current for linear scenes, maybe stale for PCG).
-    factored: bool,
-    pcg: Pcg,
-    dx: Vec<f64>,
-    pub state: State,
-    /// Strain energy of the current state.
-    pub strain_energy: f64,
+/// The mass matrix as the step uses it: a product y = M x and the entries
+/// that add c M into K_eff, both precomputed once (seed eq. 81–82 for the
+/// lumped X-FEM mass).
+struct MassOperator {
+    kind: MassKind,
+    /// Lumped: (CSC position, mass) of each free diagonal and u–a coupling entry.
+    entries: Vec<(usize, f64)>,
+    /// Consistent: gather/scatter buffers of the free–free product.
+    xf: Vec<f64>,
+    yf: Vec<f64>,
 }
 
-impl<'m> Newmark<'m> {
-    /// Starts at rest (d = v = a = 0) at t = 0.
-    pub fn new(
-        model: &'m Model,
-        chol: Cholesky,
-        opts: DynamicOptions,
-    ) -> Result<Newmark<'m>, DynamicError> {
-        if model.lumped_mass.is_none() {
-            return Err(DynamicError::NoMass);
-        }
-        let n = model.n_dofs();
-        Ok(Newmark {
-            model,
-            opts,
-            chol,
-            ws: Workspace::new(model),
-            tangent: vec![0.0; model.pattern.nnz()],
-            keff: vec![0.0; model.pattern.nnz()],
-            f_int: vec![0.0; n],
-            r_full: vec![0.0; n],
-            r_free: vec![0.0; model.n_free],
-            kv: vec![0.0; n],
-            mv: vec![0.0; n],
-            a_new: vec![0.0; n],
-            v_new: vec![0.0; n],
-            factored: false,
-            pcg: Pcg::new(model.n_free),
-            dx: vec![0.0; model.n_free],
-            state: State {
-                time: 0.0,
-                d: vec![0.0; n],
-                v: vec![0.0; n],
-                a: vec![0.0; n],
-                rotations: Rotations::identity(model),
-            },
-            strain_energy: 0.0,
-        })
-    }
-
-    /// Sets the acceleration consistent with the current state: M a = f_ext − f_int − D v
-    /// on the free DOFs (the lumped mass is diagonal; a consistent mass is factorised once for it).
-    pub fn initialise_acceleration(&mut self) -> Result<(), DynamicError> {
-        let model = self.model;
-        self.strain_energy = evaluate(
-            model,
-            &self.state.d,
-            &mut self.state.rotations,
-            &mut self.ws,
-            Request {
-                forces: Some(&mut self.f_int),
-                tangent: None,
-                update_rotations: model.formulation == Formulation::Corotational,
-                exact_tangent: false,
-            },
-        );
-        for i in 0..self.r_full.len() {
-            self.r_full[i] = model.load[i] - self.f_int[i];
-        }
-        gather_free(model, &self.r_full, &mut self.r_free);
-        // M a = r on the free DOFs: M on the pattern (the lumped one has
-        // u–a couplings at enriched nodes), factorised once for this.
-        self.keff.fill(0.0);
-        self.add_mass_to_keff(1.0);
-        // Zero-mass DOFs (none in practice) would make M singular: give them unit mass.
-        for eq in 0..model.n_free {
-            let pos = model
-                .pattern
-                .position(eq, eq)
-                .expect("diagonal is in the pattern");
-            if self.keff[pos] <= 0.0 {
-                self.keff[pos] = 1.0;
+impl MassOperator {
+    fn new(model: &Model, kind: MassKind) -> MassOperator {
+        let mut entries = Vec::new();
+        if kind == MassKind::Lumped {
+            let lumped = model.lumped_mass.as_ref().expect("checked by the caller");
+            let pos = |r: u32, q: u32| {
+                let (r, q) = (r.max(q) as usize, r.min(q) as usize);
+                model
+                    .pattern
+                    .position(r, q)
+                    .expect("the diagonal and u_i–a_i are in the pattern")
+            };
+            for (s, &ms) in lumped.iter().enumerate() {
+                for c in 0..3 {
+                    let eq = model.equation[3 * s + c];
+                    if eq != NONE {
+                        entries.push((pos(eq, eq), ms));
+                    }
+                }
+            }
+            if let (Some(cut), Some(coupling)) = (&model.cut, &model.lumped_coupling) {
+                for (i, e) in cut.enriched.iter().enumerate() {
+                    if let Some(j) = *e {
+                        let sa = model.mesh.n_nodes() + j;
+                        for c in 0..3 {
+                            let (r, q) = (model.equation[3 * sa + c], model.equation[3 * i + c]);
+                            if r != NONE && q != NONE {
+                                entries.push((pos(r, q), coupling[j]));
+                            }
+                        }
+                    }
+                }
             }
         }
-        let mass = std::mem::take(&mut self.keff);
-        let result = self.chol.factorize(&mass);
-        self.keff = mass;
-        result?;
-        self.chol.solve_in_place(&mut self.r_free);
-        self.factored = false;
-        for (dof, &eq) in model.equation.iter().enumerate() {
-            if eq != NONE {
-                self.state.a[dof] = self.r_free[eq as usize];
-            }
+        let n = if kind == MassKind::Consistent {
+            model.n_free
+        } else {
+            0
+        };
+        MassOperator {
+            kind,
+            entries,
+            xf: vec![0.0; n],
+            yf: vec![0.0; n],
         }
-        Ok(())
-    }
-
-    pub fn factorisations(&self) -> usize {
-        self.chol.factorisations
-    }
-
-    /// CG iterations done so far (PCG mode).
-    pub fn cg_iterations(&self) -> usize {
-        self.pcg.iterations
     }
 
     /// y = M x (all DOFs).
-    fn mass_product(&self, x: &[f64], y: &mut [f64]) {
-        let m = self.model;
-        match self.opts.mass {
+    fn product(&mut self, m: &Model, x: &[f64], y: &mut [f64]) {
+        match self.kind {
             MassKind::Lumped => {
                 let lumped = m.lumped_mass.as_ref().expect("checked in new");
                 for (s, ms) in lumped.iter().enumerate() {
@@ -252,27 +208,197 @@ impl<'m> Newmark<'m> {
                     .consistent_mass
                     .as_ref()
                     .expect("built with the lumped mass");
-                let mut xf = vec![0.0; m.n_free];
-                gather_free(m, x, &mut xf);
-                let mut yf = vec![0.0; m.n_free];
-                m.pattern.sym_mul_add(values, &xf, &mut yf);
+                gather_free(m, x, &mut self.xf);
+                self.yf.fill(0.0);
+                m.pattern.sym_mul_add(values, &self.xf, &mut self.yf);
                 y.fill(0.0);
                 for (dof, &eq) in m.equation.iter().enumerate() {
                     if eq != NONE {
-                        y[dof] = yf[eq as usize];
+                        y[dof] = self.yf[eq as usize];
                     }
                 }
             }
         }
     }
 
+    /// keff += factor M on the pattern.
+    fn add_to(&self, m: &Model, factor: f64, keff: &mut [f64]) {
+        match self.kind {
+            MassKind::Lumped => {
+                for &(pos, mass) in &self.entries {
+                    keff[pos] += factor * mass;
+                }
+            }
+            MassKind::Consistent => {
+                let values = m
+                    .consistent_mass
+                    .as_ref()
+                    .expect("built with the lumped mass");
+                for (k, mv) in keff.iter_mut().zip(values) {
+                    *k += factor * mv;
+                }
+            }
+        }
+    }
+}
+
+/// A Newmark integrator borrowing the model; all buffers allocated once.
+pub struct Newmark<'m> {
+    model: &'m Model,
+    opts: DynamicOptions,
+    chol: Cholesky,
+    ws: Workspace,
+    mass: MassOperator,
+    /// CSC position of each free equation's diagonal.
+    diagonal: Vec<usize>,
+    keff: Vec<f64>,
+    f_int: Vec<f64>,
+    d_old: Vec<f64>,
+    r_full: Vec<f64>,
+    r_free: Vec<f64>,
+    kv: Vec<f64>,
+    mv: Vec<f64>,
+    a_new: Vec<f64>,
+    v_new: Vec<f64>,
+    /// Rotations scratch for [`Newmark::energies`].
+    rot_scratch: Rotations,
+    /// ‖f_ext‖ (a residual scale).
+    load_norm: f64,
+    /// Whether a factorisation of K_eff exists (current for linear scenes, maybe stale for PCG).
+    factored: bool,
+    pcg: Pcg,
+    dx: Vec<f64>,
+    pub state: State,
+    /// Strain energy of the current state.
+    pub strain_energy: f64,
+}
+
+impl<'m> Newmark<'m> {
+    /// Starts at rest (d = v = a = 0) at t = 0.
+    pub fn new(
+        model: &'m Model,
+        chol: Cholesky,
+        opts: DynamicOptions,
+    ) -> Result<Newmark<'m>, DynamicError> {
+        if model.lumped_mass.is_none() {
+            return Err(DynamicError::NoMass);
+        }
+        let n = model.n_dofs();
+        let diagonal = (0..model.n_free)
+            .map(|eq| {
+                model
+                    .pattern
+                    .position(eq, eq)
+                    .expect("diagonal is in the pattern")
+            })
+            .collect();
+        Ok(Newmark {
+            model,
+            opts,
+            chol,
+            ws: Workspace::new(model),
+            mass: MassOperator::new(model, opts.mass),
+            diagonal,
+            keff: vec![0.0; model.pattern.nnz()],
+            f_int: vec![0.0; n],
+            d_old: vec![0.0; n],
+            r_full: vec![0.0; n],
+            r_free: vec![0.0; model.n_free],
+            kv: vec![0.0; n],
+            mv: vec![0.0; n],
+            a_new: vec![0.0; n],
+            v_new: vec![0.0; n],
+            rot_scratch: Rotations::identity(model),
+            load_norm: norm(&model.load),
+            factored: false,
+            pcg: Pcg::new(model.n_free),
+            dx: vec![0.0; model.n_free],
+            state: State {
+                time: 0.0,
+                d: vec![0.0; n],
+                v: vec![0.0; n],
+                a: vec![0.0; n],
+                rotations: Rotations::identity(model),
+            },
+            strain_energy: 0.0,
+        })
+    }
+
+    /// The options the integrator runs with.
+    pub fn options(&self) -> &DynamicOptions {
+        &self.opts
+    }
+
+    /// Ends the integrator, handing back its factorisation (symbolic analysis
+    /// and buffers) to start another on the same pattern without redoing them.
+    pub fn into_cholesky(self) -> Cholesky {
+        self.chol
+    }
+
+    /// Ends the integration, giving back the state and the factorisation
+    /// (a progressive cut maps the state onto its new model and keeps the
+    /// symbolic analysis where the pattern did not change).
+    pub fn into_parts(self) -> (State, Cholesky) {
+        (self.state, self.chol)
+    }
+
+    /// Sets the acceleration consistent with the current state: M a = f_ext − f_int − D v
+    /// on the free DOFs (the lumped mass is diagonal; a consistent mass is factorised once for it).
+    pub fn initialise_acceleration(&mut self) -> Result<(), DynamicError> {
+        let model = self.model;
+        self.strain_energy = evaluate(
+            model,
+            &self.state.d,
+            &mut self.state.rotations,
+            &mut self.ws,
+            Request {
+                forces: Some(&mut self.f_int),
+                tangent: None,
+                update_rotations: model.formulation == Formulation::Corotational,
+                exact_tangent: false,
+            },
+        );
+        for i in 0..self.r_full.len() {
+            self.r_full[i] = model.load[i] - self.f_int[i];
+        }
+        gather_free(model, &self.r_full, &mut self.r_free);
+        // M a = r on the free DOFs: M on the pattern (the lumped one has
+        // u–a couplings at enriched nodes), factorised once for this.
+        self.keff.fill(0.0);
+        self.mass.add_to(model, 1.0, &mut self.keff);
+        // Zero-mass DOFs (none in practice) would make M singular: give them unit mass.
+        for &pos in &self.diagonal {
+            if self.keff[pos] <= 0.0 {
+                self.keff[pos] = 1.0;
+            }
+        }
+        self.chol.factorize(&self.keff)?;
+        self.chol.solve_in_place(&mut self.r_free);
+        self.factored = false;
+        for (dof, &eq) in model.equation.iter().enumerate() {
+            if eq != NONE {
+                self.state.a[dof] = self.r_free[eq as usize];
+            }
+        }
+        Ok(())
+    }
+
+    pub fn factorisations(&self) -> usize {
+        self.chol.factorisations
+    }
+
+    /// CG iterations done so far (PCG mode).
+    pub fn cg_iterations(&self) -> usize {
+        self.pcg.iterations
+    }
+
     /// Energies of the current state (the strain energy is evaluated afresh).
     pub fn energies(&mut self) -> Energies {
-        let mut rot = self.state.rotations.clone();
+        self.rot_scratch.0.copy_from_slice(&self.state.rotations.0);
         self.strain_energy = evaluate(
             self.model,
             &self.state.d,
-            &mut rot,
+            &mut self.rot_scratch,
             &mut self.ws,
             Request {
                 forces: None,
@@ -281,24 +407,9 @@ impl<'m> Newmark<'m> {
                 exact_tangent: false,
             },
         );
-        let mut mv = std::mem::take(&mut self.mv);
-        self.mass_product(&self.state.v, &mut mv);
-        let kinetic = 0.5
-            * self
-                .state
-                .v
-                .iter()
-                .zip(&mv)
-                .map(|(a, b)| a * b)
-                .sum::<f64>();
-        self.mv = mv;
-        let external_work = self
-            .model
-            .load
-            .iter()
-            .zip(&self.state.d)
-            .map(|(a, b)| a * b)
-            .sum();
+        self.mass.product(self.model, &self.state.v, &mut self.mv);
+        let kinetic = 0.5 * dot(&self.state.v, &self.mv);
+        let external_work = dot(&self.model.load, &self.state.d);
         Energies {
             kinetic,
             strain: self.strain_energy,
@@ -315,63 +426,72 @@ impl<'m> Newmark<'m> {
         }
     }
 
+    /// a(d), v(d) of the Newmark scheme into `a_new`, `v_new`.
+    fn kinematics(&mut self, d: &[f64]) {
+        let o = self.opts;
+        let dt = o.dt;
+        let c0 = 1.0 / (o.beta * dt * dt);
+        let c1 = 1.0 / (o.beta * dt);
+        let c2 = 1.0 / (2.0 * o.beta) - 1.0;
+        let s = &self.state;
+        for i in 0..d.len() {
+            self.a_new[i] = c0 * (d[i] - self.d_old[i]) - c1 * s.v[i] - c2 * s.a[i];
+            self.v_new[i] = s.v[i] + dt * ((1.0 - o.gamma) * s.a[i] + o.gamma * self.a_new[i]);
+        }
+    }
+
     /// Advances one time step.
     pub fn step(&mut self) -> Result<StepReport, DynamicError> {
         let model = self.model;
         let o = self.opts;
         let dt = o.dt;
         let c0 = 1.0 / (o.beta * dt * dt);
-        let c1 = 1.0 / (o.beta * dt);
-        let c2 = 1.0 / (2.0 * o.beta) - 1.0;
         let t_new = self.state.time + dt;
         let linear = model.formulation == Formulation::Linear;
+        let exact = o.exact_tangent && !linear;
         let ramp = self.ramp(t_new);
         let step_no = (t_new / dt).round() as usize;
+        let (factor_start, cg_start) = (self.chol.factorisations, self.pcg.iterations);
 
         // Predictor: d stays, prescribed DOFs take their new values.
-        let d_old = self.state.d.clone();
+        self.d_old.copy_from_slice(&self.state.d);
         let mut d = std::mem::take(&mut self.state.d);
         for p in &model.prescribed {
             d[p.dof] = ramp * p.value;
         }
+        // K_eff = K_t + (k_factor − 1) R K Rᵀ + m_factor M (D = α M + β_R R K Rᵀ).
         let k_factor = 1.0 + o.rayleigh_stiffness * o.gamma / (o.beta * dt);
         let m_factor = c0 + o.rayleigh_mass * o.gamma / (o.beta * dt);
         let mut report = StepReport::default();
         loop {
             let need_tangent = !linear || !self.factored;
-            self.strain_energy = evaluate(
+            self.strain_energy = evaluate_damped(
                 model,
                 &d,
                 &mut self.state.rotations,
                 &mut self.ws,
                 Request {
                     forces: Some(&mut self.f_int),
-                    tangent: need_tangent.then_some(&mut self.tangent[..]),
+                    tangent: need_tangent.then_some(&mut self.keff[..]),
                     update_rotations: !linear,
-                    exact_tangent: false,
+                    exact_tangent: exact,
                 },
+                k_factor - 1.0,
             );
-            for i in 0..d.len() {
-                self.a_new[i] =
-                    c0 * (d[i] - d_old[i]) - c1 * self.state.v[i] - c2 * self.state.a[i];
-                self.v_new[i] = self.state.v[i]
-                    + dt * ((1.0 - o.gamma) * self.state.a[i] + o.gamma * self.a_new[i]);
-            }
+            self.kinematics(&d);
             // r = f_ext − f_int − M a − D v, D v = α M v + β K_t v.
-            let mut ma = std::mem::take(&mut self.mv);
-            self.mass_product(&self.a_new, &mut ma);
+            self.mass.product(model, &self.a_new, &mut self.mv);
             for i in 0..d.len() {
-                self.r_full[i] = model.load[i] - self.f_int[i] - ma[i];
+                self.r_full[i] = model.load[i] - self.f_int[i] - self.mv[i];
             }
             // Force scale of the residual: loads, internal and inertial forces.
-            let scale = norm(&model.load).max(norm(&self.f_int)).max(norm(&ma));
+            let scale = self.load_norm.max(norm(&self.f_int)).max(norm(&self.mv));
             if o.rayleigh_mass != 0.0 {
-                self.mass_product(&self.v_new, &mut ma);
+                self.mass.product(model, &self.v_new, &mut self.mv);
                 for i in 0..d.len() {
-                    self.r_full[i] -= o.rayleigh_mass * ma[i];
+                    self.r_full[i] -= o.rayleigh_mass * self.mv[i];
                 }
             }
-            self.mv = ma;
             if o.rayleigh_stiffness != 0.0 {
                 self.kv.fill(0.0);
                 tangent_product(
@@ -407,11 +527,7 @@ impl<'m> Newmark<'m> {
                 break;
             }
             if need_tangent {
-                // K_eff on the pattern: tangent scaled, plus mass.
-                for (k, t) in self.keff.iter_mut().zip(&self.tangent) {
-                    *k = k_factor * t;
-                }
-                self.add_mass_to_keff(m_factor);
+                self.mass.add_to(model, m_factor, &mut self.keff);
             }
             let solved = match (o.linear_solver, need_tangent && self.factored && !linear) {
                 (LinearSolver::Pcg { tolerance, max_cg }, true) => {
@@ -433,7 +549,17 @@ impl<'m> Newmark<'m> {
             };
             if !solved {
                 if need_tangent {
-                    self.chol.factorize(&self.keff)?;
+                    match self.chol.factorize(&self.keff) {
+                        Err(SolveError::NotPositiveDefinite) if exact => {
+                            // Away from a stable state (compression, buckling)
+                            // the exact tangent can be indefinite: this
+                            // iteration takes k_factor R K Rᵀ + m_factor M.
+                            report.fallbacks += 1;
+                            self.assemble_corotated(&d, k_factor, m_factor);
+                            self.chol.factorize(&self.keff)?;
+                        }
+                        other => other?,
+                    }
                     self.factored = true;
                 }
                 self.chol.solve_in_place(&mut self.r_free);
@@ -450,68 +576,38 @@ impl<'m> Newmark<'m> {
             }
         }
         // Kinematics of the final iterate (the loop may stop right after an update).
-        for i in 0..d.len() {
-            self.a_new[i] = c0 * (d[i] - d_old[i]) - c1 * self.state.v[i] - c2 * self.state.a[i];
-            self.v_new[i] = self.state.v[i]
-                + dt * ((1.0 - o.gamma) * self.state.a[i] + o.gamma * self.a_new[i]);
-        }
+        self.kinematics(&d);
         std::mem::swap(&mut self.state.v, &mut self.v_new);
         std::mem::swap(&mut self.state.a, &mut self.a_new);
         self.state.d = d;
         self.state.time = t_new;
+        report.factorisations = self.chol.factorisations - factor_start;
+        report.cg_iterations = self.pcg.iterations - cg_start;
         if self.state.d.iter().any(|x| !x.is_finite()) {
             return Err(DynamicError::NotFinite(step_no));
         }
         Ok(report)
     }
 
-    fn add_mass_to_keff(&mut self, factor: f64) {
-        let model = self.model;
-        match self.opts.mass {
-            MassKind::Lumped => {
-                let lumped = model.lumped_mass.as_ref().expect("checked in new");
-                for (s, ms) in lumped.iter().enumerate() {
-                    for c in 0..3 {
-                        let eq = model.equation[3 * s + c];
-                        if eq != NONE {
-                            let eq = eq as usize;
-                            let pos = model
-                                .pattern
-                                .position(eq, eq)
-                                .expect("diagonal is in the pattern");
-                            self.keff[pos] += factor * ms;
-                        }
-                    }
-                }
-                if let (Some(cut), Some(coupling)) = (&model.cut, &model.lumped_coupling) {
-                    for (i, e) in cut.enriched.iter().enumerate() {
-                        if let Some(j) = *e {
-                            let sa = model.mesh.n_nodes() + j;
-                            for c in 0..3 {
-                                let (r, q) =
-                                    (model.equation[3 * sa + c], model.equation[3 * i + c]);
-                                if r != NONE && q != NONE {
-                                    let (r, q) = (r.max(q) as usize, r.min(q) as usize);
-                                    let pos = model
-                                        .pattern
-                                        .position(r, q)
-                                        .expect("u_i and a_i share elements");
-                                    self.keff[pos] += factor * coupling[j];
-                                }
-                            }
-                        }
-                    }
-                }
-            }
-            MassKind::Consistent => {
-                let values = model
-                    .consistent_mass
-                    .as_ref()
-                    .expect("built with the lumped mass");
-                for (k, mv) in self.keff.iter_mut().zip(values) {
-                    *k += factor * mv;
-                }
-            }
-        }
+    /// keff = k_factor R K Rᵀ + m_factor M at `d` with the stored rotations.
+    fn assemble_corotated(&mut self, d: &[f64], k_factor: f64, m_factor: f64) {
+        evaluate_damped(
+            self.model,
+            d,
+            &mut self.state.rotations,
+            &mut self.ws,
+            Request {
+                forces: None,
+                tangent: Some(&mut self.keff),
+                update_rotations: false,
+                exact_tangent: false,
+            },
+            k_factor - 1.0,
+        );
+        self.mass.add_to(self.model, m_factor, &mut self.keff);
     }
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }

@@ -144,7 +144,7 @@ fn run() -> Result<()> {
                 })
             });
             let mut rows = if csv.exists() {
-                xfem_cut::converge::read_csv(&csv)?
+                xfem_cut::study::converge::read_csv(&csv)?
             } else {
                 Vec::new()
             };
@@ -153,18 +153,19 @@ fn run() -> Result<()> {
             for case in &cases {
                 let name = Scene::load(case)?.name;
                 bar.set_message(format!("{name}: running"));
-                let new = xfem_cut::converge::converge_case(case, max_dofs, corotational, |msg| {
-                    // indicatif drops println when not on a terminal (make's logs).
-                    if bar.is_hidden() {
-                        eprintln!("{msg}");
-                    } else {
-                        bar.println(msg);
-                    }
-                })
-                .map_err(anyhow::Error::msg)?;
+                let new =
+                    xfem_cut::study::converge::converge_case(case, max_dofs, corotational, |msg| {
+                        // indicatif drops println when not on a terminal (make's logs).
+                        if bar.is_hidden() {
+                            eprintln!("{msg}");
+                        } else {
+                            bar.println(msg);
+                        }
+                    })
+                    .map_err(anyhow::Error::msg)?;
                 rows.retain(|r| r.case != name);
                 rows.extend(new);
-                xfem_cut::converge::write_csv(&csv, &rows)?;
+                xfem_cut::study::converge::write_csv(&csv, &rows)?;
             }
             bar.finish_and_clear();
             println!("wrote {}", csv.display());
@@ -175,7 +176,7 @@ fn run() -> Result<()> {
                 std::fs::create_dir_all(dir)
                     .with_context(|| format!("creating {}", dir.display()))?;
             }
-            let rows = xfem_cut::stress::run_suite(&only, |r| {
+            let rows = xfem_cut::study::stress::run_suite(&only, |r| {
                 println!(
                     "{} {} | {} | {} ({:.1} s)",
                     if r.pass { "pass" } else { "FAIL" },
@@ -186,7 +187,7 @@ fn run() -> Result<()> {
                 )
             });
             if only.is_empty() {
-                xfem_cut::stress::write_csv(&csv, &rows)?;
+                xfem_cut::study::stress::write_csv(&csv, &rows)?;
                 println!("wrote {}", csv.display());
             }
             let failed = rows.iter().filter(|r| !r.pass).count();
@@ -209,7 +210,7 @@ fn run() -> Result<()> {
                     .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
                     .unwrap_or_default()
             );
-            xfem_cut::report::write_report(&dir, &criterion, &machine)
+            xfem_cut::study::report::write_report(&dir, &criterion, &machine)
                 .map_err(anyhow::Error::msg)?;
             println!("wrote {}", dir.join("README.md").display());
             Ok(())

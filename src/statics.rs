@@ -86,6 +86,9 @@ pub fn solve_static_along(
     let mut d = vec![0.0; n];
     let mut f_int = vec![0.0; n];
     let mut r_free = vec![0.0; model.n_free];
+    let mut r_full = vec![0.0; n];
+    let mut start = vec![0.0; n];
+    let load_norm = norm(&model.load);
     let mut tangent = vec![0.0; model.pattern.nnz()];
     let mut rot = Rotations::identity(model);
     let mut ws = Workspace::new(model);
@@ -114,14 +117,11 @@ pub fn solve_static_along(
                     exact_tangent: opts.exact_tangent,
                 },
             );
-            let r_full: Vec<f64> = model
-                .load
-                .iter()
-                .zip(&f_int)
-                .map(|(l, f)| lambda * l - f)
-                .collect();
+            for ((r, l), f) in r_full.iter_mut().zip(&model.load).zip(&f_int) {
+                *r = lambda * l - f;
+            }
             gather_free(model, &r_full, &mut r_free);
-            let scale = norm(&model.load).max(norm(&f_int));
+            let scale = load_norm.max(norm(&f_int));
             let r_norm = norm(&r_free);
             residual = if r_norm == 0.0 { 0.0 } else { r_norm / scale };
             if !residual.is_finite() {
@@ -180,7 +180,7 @@ pub fn solve_static_along(
                 let before = residual * scale;
                 let potential = |energy: f64, d: &[f64]| energy - lambda * dot(&model.load, d);
                 let before_potential = potential(energy, &d);
-                let start = d.clone();
+                start.copy_from_slice(&d);
                 let mut alpha = 1.0;
                 for _ in 0..8 {
                     d.copy_from_slice(&start);

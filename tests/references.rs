@@ -3,9 +3,9 @@
 
 use std::path::Path;
 use xfem_cut::mesh::ElementKind;
-use xfem_cut::reference::{out_dir, read_reference, same_mesh_difference};
 use xfem_cut::run::solve_scene;
 use xfem_cut::scene::Scene;
+use xfem_cut::study::reference::{out_dir, read_reference, same_mesh_difference};
 
 const CASES: [(&str, &str); 6] = [
     ("gravity", "beam_crack"),

@@ -2,7 +2,7 @@
 //! 10⁴ undamped steps, run in `make report`; the 10⁴-step damped cut beam is
 //! in tests/xfem.rs).
 
-use xfem_cut::stress::run_suite;
+use xfem_cut::study::stress::run_suite;
 
 fn all_pass(family: &str, at_least: usize) {
     let rows = run_suite(family, |_| {});

@@ -10,10 +10,10 @@ use crate::cut::{CutSurface, PlanarPatch};
 use crate::locate::Locator;
 use crate::mesh::ElementKind;
 use crate::model::Formulation;
-use crate::reference::{out_dir, read_reference, Reference};
 use crate::run::{evaluate_at, solve_scene};
 use crate::scene::{BodyGeometry, Scene};
-use crate::verify::{l2_error, Field};
+use crate::study::reference::{out_dir, read_reference, Reference};
+use crate::study::verify::{l2_error, Field};
 use nalgebra::{Point3, Vector3};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -201,11 +201,7 @@ pub fn converge_case(
             .map(|(e, l)| field.at(e, &l))
     };
     // Points on the crack (inside the body), the side offset and the reference jumps there.
-    let patch = base.cuts.first().map(|c| PlanarPatch {
-        origin: c.origin,
-        u: c.u,
-        v: c.v,
-    });
+    let patch: Option<PlanarPatch> = base.patches().next().cloned();
     let offset = patch
         .as_ref()
         .map_or(Vector3::zeros(), |p| p.normal() * SIDE_OFFSET);

@@ -120,3 +120,84 @@ pub fn same_mesh_difference(
     }
     Ok((diff / norm).sqrt())
 }
+
+/// A graded fine reference and its own error, one row of
+/// `reports/data/references.csv` (written by `refs/make_refs.py` from the
+/// manifests): the fine graded P2 solution against the one 1.4× coarser
+/// everywhere, measured like the study's rows (L2, opening, probes).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReferenceQuality {
+    pub case: String,
+    pub family: String,
+    pub dofs: usize,
+    /// Element size on the singular curves (crack front; `slice`: the clamped edges), m.
+    pub front_h: f64,
+    /// Far-field element size, m.
+    pub far_h: f64,
+    pub coarse_dofs: usize,
+    pub coarse_front_h: f64,
+    /// ‖u_fine − u_coarse‖ / ‖u_fine‖ (L2), the reference's error estimate.
+    pub own_l2: f64,
+    /// The same for the crack opening (NaN without a cut).
+    pub own_opening: f64,
+    /// Largest probe difference over the largest probe displacement (NaN without probes).
+    pub own_probes: f64,
+}
+
+pub const QUALITY_HEADER: &str =
+    "case,family,dofs,front_h,far_h,coarse_dofs,coarse_front_h,own_l2,own_opening,own_probes";
+
+/// A level whose error is below this multiple of the reference's own error
+/// is "unresolved": the reference cannot tell its error apart.
+pub const RESOLVED_FACTOR: f64 = 3.0;
+
+impl ReferenceQuality {
+    pub fn parse(line: &str) -> Option<ReferenceQuality> {
+        let f: Vec<&str> = line.trim().split(',').collect();
+        if f.len() != 10 {
+            return None;
+        }
+        let num = |k: usize| -> Option<f64> {
+            match f[k] {
+                "" | "nan" | "None" => Some(f64::NAN),
+                v => v.parse().ok(),
+            }
+        };
+        Some(ReferenceQuality {
+            case: f[0].to_string(),
+            family: f[1].to_string(),
+            dofs: f[2].parse().ok()?,
+            front_h: num(3)?,
+            far_h: num(4)?,
+            coarse_dofs: f[5].parse().ok()?,
+            coarse_front_h: num(6)?,
+            own_l2: num(7)?,
+            own_opening: num(8)?,
+            own_probes: num(9)?,
+        })
+    }
+
+    /// Whether an L2 error is resolved by this reference (≥ [`RESOLVED_FACTOR`] × its own error).
+    pub fn resolves(&self, l2: f64) -> bool {
+        l2 >= RESOLVED_FACTOR * self.own_l2
+    }
+}
+
+/// Reads `reports/data/references.csv` (header line first; bad lines are an error).
+pub fn read_quality(path: &Path) -> Result<Vec<ReferenceQuality>, IoError> {
+    let text = std::fs::read_to_string(path).map_err(|e| IoError::os(path, "reading", e))?;
+    let mut lines = text.lines();
+    if lines.next().map(str::trim) != Some(QUALITY_HEADER) {
+        return Err(IoError::new(
+            path,
+            format!("the header must be `{QUALITY_HEADER}`"),
+        ));
+    }
+    lines
+        .filter(|l| !l.trim().is_empty())
+        .map(|l| {
+            ReferenceQuality::parse(l)
+                .ok_or_else(|| IoError::invalid(path, format!("bad row `{l}`")))
+        })
+        .collect()
+}

@@ -1,0 +1,162 @@
+//! The time step allocates nothing after the first, and does a pinned amount
+//! of work: a counting global allocator (this binary's own) around
+//! Newmark steps, linear and corotational, cut and uncut, lumped and
+//! consistent mass, direct and PCG.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::path::Path;
+use xfem_cut::dynamics::{DynamicOptions, LinearSolver, MassKind, Newmark, StepReport};
+use xfem_cut::model::{Formulation, Model};
+use xfem_cut::scene::{Analysis, Scene};
+use xfem_cut::solve::Cholesky;
+
+/// Counts the allocations (alloc, alloc_zeroed, realloc) of the calling thread.
+struct Counting;
+
+thread_local! {
+    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
+}
+
+fn count() {
+    let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
+}
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        count();
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        count();
+        unsafe { System.alloc_zeroed(layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        count();
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn allocations() -> u64 {
+    ALLOCATIONS.with(|c| c.get())
+}
+
+/// A shipped case at level 0 with `formulation`, its model and dynamic options.
+fn case(file: &str, formulation: &str) -> (Model, DynamicOptions) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("cases")
+        .join(file);
+    let text = std::fs::read_to_string(&path).unwrap();
+    let text = text.replace(
+        "formulation = \"corotational\"",
+        &format!("formulation = \"{formulation}\""),
+    );
+    let scene = Scene::parse(&text, &path).unwrap();
+    let (model, _plan) = scene.build(scene.mesh(0).unwrap()).unwrap();
+    let Analysis::Dynamic { options, .. } = scene.analysis else {
+        panic!("{file} is a dynamic case")
+    };
+    (model, options)
+}
+
+/// Runs `steps` steps after a first one; returns the allocations counted
+/// over them and each step's report.
+fn run(model: &Model, options: DynamicOptions, steps: usize) -> (u64, Vec<StepReport>) {
+    let chol = Cholesky::new(&model.pattern).unwrap();
+    let mut nm = Newmark::new(model, chol, options).unwrap();
+    nm.initialise_acceleration().unwrap();
+    let mut reports = vec![nm.step().unwrap()];
+    reports.reserve(steps);
+    let before = allocations();
+    for _ in 0..steps {
+        let r = nm.step().unwrap();
+        reports.push(r);
+    }
+    (allocations() - before, reports)
+}
+
+fn iterations(reports: &[StepReport]) -> Vec<usize> {
+    reports.iter().map(|r| r.iterations).collect()
+}
+
+#[test]
+fn the_counter_counts() {
+    let before = allocations();
+    let v = std::hint::black_box(vec![1u8; 10]);
+    assert_eq!(allocations() - before, 1);
+    drop(v);
+}
+
+#[test]
+fn a_linear_step_allocates_nothing_and_factorises_once() {
+    for file in ["bend_dynamic.toml", "bend_dynamic_uncut.toml"] {
+        for mass in [MassKind::Lumped, MassKind::Consistent] {
+            let (model, options) = case(file, "linear");
+            let options = DynamicOptions { mass, ..options };
+            let (allocated, reports) = run(&model, options, 20);
+            assert_eq!(allocated, 0, "{file} {mass:?}: {allocated} allocations");
+            // The constant K_eff is factorised in the first step only; each
+            // step is one solve, checked by the residual at the end.
+            let factorisations: Vec<usize> = reports.iter().map(|r| r.factorisations).collect();
+            assert_eq!(factorisations[0], 1, "{file} {mass:?}");
+            assert!(
+                factorisations[1..].iter().all(|&f| f == 0),
+                "{file} {mass:?}"
+            );
+            assert!(reports.iter().all(|r| r.iterations == 1), "{file} {mass:?}");
+        }
+    }
+}
+
+#[test]
+fn a_corotational_step_allocates_nothing_and_factorises_once_per_iteration() {
+    for file in ["bend_dynamic.toml", "bend_dynamic_uncut.toml"] {
+        for mass in [MassKind::Lumped, MassKind::Consistent] {
+            let (model, options) = case(file, "corotational");
+            assert_eq!(model.formulation, Formulation::Corotational);
+            let options = DynamicOptions { mass, ..options };
+            let (allocated, reports) = run(&model, options, 20);
+            assert_eq!(allocated, 0, "{file} {mass:?}: {allocated} allocations");
+            for (k, r) in reports.iter().enumerate() {
+                assert_eq!(r.factorisations, r.iterations, "{file} {mass:?} step {k}");
+                assert!(r.residual <= options.tolerance, "{file} {mass:?} step {k}");
+            }
+            println!(
+                "{file} {mass:?}: Newton iterations {:?}",
+                iterations(&reports)
+            );
+        }
+    }
+}
+
+#[test]
+fn a_pcg_step_allocates_nothing() {
+    let (model, options) = case("bend_dynamic.toml", "corotational");
+    let options = DynamicOptions {
+        linear_solver: LinearSolver::Pcg {
+            tolerance: 1e-8,
+            max_cg: 25,
+        },
+        ..options
+    };
+    let (allocated, reports) = run(&model, options, 20);
+    assert_eq!(allocated, 0, "{allocated} allocations");
+    let cg: usize = reports.iter().map(|r| r.cg_iterations).sum();
+    let factorisations: usize = reports.iter().map(|r| r.factorisations).sum();
+    let newton: usize = reports.iter().map(|r| r.iterations).sum();
+    println!(
+        "PCG: {newton} Newton, {cg} CG iterations, {factorisations} factorisations in 21 steps"
+    );
+    // CG replaces most factorisations.
+    assert!(
+        factorisations < newton,
+        "{factorisations} factorisations, {newton} iterations"
+    );
+    assert!(cg > 0);
+}
