@@ -521,3 +521,163 @@ fn the_cut_ends_at_the_front_inside_elements() {
         }
     }
 }
+
+#[test]
+fn corotational_exact_tangent_with_tip_dofs_matches_central_differences() {
+    use nalgebra::{Rotation3, Unit};
+    use xfem_cut::assembly::{evaluate, Request, Rotations, Workspace};
+    let fr = Front::new();
+    let patch = fr.patch();
+    for kind in [ElementKind::Tet4, ElementKind::Tet10] {
+        let mesh = mesh(3, kind, 0.2);
+        let cut = setup_cut(&mesh, &[CutInput::tip(&patch, 1e-4, Some(0.3))]).unwrap();
+        assert!(cut.n_tip() > 0 && cut.n_heaviside() > 0);
+        let fixed: Vec<_> = (0..mesh.n_nodes())
+            .filter(|&i| mesh.nodes[i].z == 0.0)
+            .map(|i| (i, [Some(0.0); 3]))
+            .collect();
+        let model = Model::build(ModelInput {
+            mesh,
+            material: MATERIAL,
+            formulation: Formulation::Corotational,
+            cut: Some(cut),
+            fixed,
+            gravity: None,
+            body_force: None,
+            tractions: &[],
+            need_mass: false,
+        })
+        .unwrap();
+        // 60° about a skew axis, a 5 % stretch, and a wobble of every enriched DOF.
+        let rot = Rotation3::from_axis_angle(
+            &Unit::new_normalize(Vector3::new(1.0, 2.0, 0.5)),
+            std::f64::consts::FRAC_PI_3,
+        );
+        let n = model.n_dofs();
+        let mut d = vec![0.0; n];
+        for (i, p) in model.mesh.nodes.iter().enumerate() {
+            let x = p.coords;
+            let u = rot * Vector3::new(1.05 * x.x, x.y + 0.03 * (3.0 * x.z).sin(), x.z) - x;
+            d[3 * i..3 * i + 3].copy_from_slice(u.as_slice());
+        }
+        for (k, v) in d.iter_mut().enumerate().skip(3 * model.mesh.n_nodes()) {
+            *v = 0.01 * ((k as f64) * 0.7).sin();
+        }
+        let forces = |dd: &[f64]| {
+            let mut f = vec![0.0; n];
+            evaluate(
+                &model,
+                dd,
+                &mut Rotations::identity(&model),
+                &mut Workspace::new(&model),
+                Request {
+                    forces: Some(&mut f),
+                    tangent: None,
+                    update_rotations: true,
+                    exact_tangent: false,
+                },
+            );
+            f
+        };
+        let mut z_full = vec![0.0; n];
+        let mut z_free = vec![0.0; model.n_free];
+        for (dof, &eq) in model.equation.iter().enumerate() {
+            if eq != xfem_cut::model::NONE {
+                let v = ((dof as f64) * 1.3).cos();
+                z_full[dof] = v;
+                z_free[eq as usize] = v;
+            }
+        }
+        let h = 1e-6;
+        let shifted = |s: f64| -> Vec<f64> {
+            let dd: Vec<f64> = d.iter().zip(&z_full).map(|(a, b)| a + s * b).collect();
+            forces(&dd)
+        };
+        let (fp, fm) = (shifted(h), shifted(-h));
+        let mut fd = vec![0.0; model.n_free];
+        for (dof, &eq) in model.equation.iter().enumerate() {
+            if eq != xfem_cut::model::NONE {
+                fd[eq as usize] = (fp[dof] - fm[dof]) / (2.0 * h);
+            }
+        }
+        let mut k = vec![0.0; model.pattern.nnz()];
+        evaluate(
+            &model,
+            &d,
+            &mut Rotations::identity(&model),
+            &mut Workspace::new(&model),
+            Request {
+                forces: None,
+                tangent: Some(&mut k),
+                update_rotations: true,
+                exact_tangent: true,
+            },
+        );
+        let mut y = vec![0.0; model.n_free];
+        model.pattern.sym_mul_add(&k, &z_free, &mut y);
+        let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let diff: Vec<f64> = y.iter().zip(&fd).map(|(a, b)| a - b).collect();
+        let rel = norm(&diff) / norm(&fd);
+        println!(
+            "{kind:?}: {} groups, exact tangent vs central differences {rel:.2e}",
+            model.groups.len()
+        );
+        assert!(rel <= 1e-6, "{kind:?}: {rel:e}");
+    }
+}
+
+#[test]
+fn dofs_added_per_front_length_against_tip_radius() {
+    // The front's length inside the unit box, from the line's parameter range.
+    let fr = Front::new();
+    let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
+    for c in 0..3 {
+        let (a, b) = ((0.0 - fr.c[c]) / fr.t[c], (1.0 - fr.c[c]) / fr.t[c]);
+        if fr.t[c].abs() > 1e-12 {
+            lo = lo.max(a.min(b));
+            hi = hi.min(a.max(b));
+        }
+    }
+    let length = hi - lo;
+    let patch = fr.patch();
+    let mut previous = 0;
+    for n in [8, 16] {
+        let mesh = mesh(n, ElementKind::Tet4, 0.0);
+        for radius in [None, Some(0.05), Some(0.1), Some(0.2)] {
+            let t0 = std::time::Instant::now();
+            let cut = setup_cut(&mesh, &[CutInput::tip(&patch, 1e-4, radius)]).unwrap();
+            let dt = t0.elapsed().as_secs_f64();
+            let added = 3 * cut.n_heaviside() + 12 * cut.n_tip();
+            println!(
+                "h 1/{n} tip_radius {radius:?}: {} tip, {} Heaviside nodes, {:.0} DOFs added per unit front length (front {length:.3}); set-up {:.1} ms",
+                cut.n_tip(),
+                cut.n_heaviside(),
+                added as f64 / length,
+                dt * 1e3
+            );
+            let t1 = std::time::Instant::now();
+            let model = Model::build(ModelInput {
+                mesh: mesh.clone(),
+                material: MATERIAL,
+                formulation: Formulation::Linear,
+                cut: Some(cut.clone()),
+                fixed: vec![(0, [Some(0.0); 3])],
+                gravity: None,
+                body_force: None,
+                tractions: &[],
+                need_mass: false,
+            })
+            .unwrap();
+            println!(
+                "    precompute (Model::build) {:.1} ms, {} groups (rough wall clock, shared machine)",
+                t1.elapsed().as_secs_f64() * 1e3,
+                model.groups.len()
+            );
+            if radius.is_some() {
+                assert!(cut.n_tip() >= previous);
+            }
+            previous = cut.n_tip();
+        }
+        previous = 0;
+    }
+}
