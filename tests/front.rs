@@ -681,3 +681,135 @@ fn dofs_added_per_front_length_against_tip_radius() {
         previous = 0;
     }
 }
+
+/// KNOWN FAILURE (ignored, run with --ignored): with tip nodes the linear
+/// field is not reproduced (Tet4 topological, h = 1/4 jittered: field error
+/// 1.4 relative, tip DOFs 2.3e-3 from a 3.8e-7 quadrature residual). Cause:
+/// on the linear partition of unity, φF₂ − φF₃ − ψF₄ ≡ 0 makes the tip DOFs
+/// of fully enriched elements linearly dependent (only blending elements
+/// break it), so K is nearly singular there; conditioning (Béchet 2005
+/// orthonormalisation does not remove a dependence across nodes; Laborde
+/// 2005 DOF gathering would) is not done yet. Extend passes at 2e-14.
+#[test]
+#[ignore]
+fn patch_test_with_tip_nodes_present() {
+    // Uniaxial stress along the front direction t: σ n = 0 on the cut faces,
+    // so the linear field u = ε x (+ a rotation-free offset) is the exact
+    // solution with the cut; imposed on the boundary's standard DOFs (enriched
+    // ones 0), the solution reproduces it with zero enriched DOFs.
+    let fr = Front::new();
+    let patch = fr.patch();
+    let lame = Lame::from(MATERIAL);
+    let s = 1e-2;
+    let nu = MATERIAL.poisson;
+    let eps =
+        (fr.t * fr.t.transpose() * (1.0 + nu) - Matrix3::identity() * nu) * (s / MATERIAL.young);
+    let sigma = Matrix3::identity() * (lame.lambda * eps.trace()) + eps * (2.0 * lame.mu);
+    assert!((sigma * fr.n).norm() < 1e-15);
+    let exact = |x: &Point3<f64>| eps * x.coords + Vector3::new(1e-3, -2e-3, 5e-4);
+    for (kind, input) in [
+        (ElementKind::Tet4, CutInput::extend(&patch, 1e-4)),
+        (ElementKind::Tet4, CutInput::tip(&patch, 1e-4, None)),
+        (ElementKind::Tet4, CutInput::tip(&patch, 1e-4, Some(0.2))),
+        (ElementKind::Tet10, CutInput::tip(&patch, 1e-4, Some(0.2))),
+    ] {
+        let mesh = mesh(4, kind, 0.2);
+        let cut = setup_cut(&mesh, &[input]).unwrap();
+        let n_nodes = mesh.n_nodes();
+        let mut fixed = Vec::new();
+        for (i, p) in mesh.nodes.iter().enumerate() {
+            if (0..3).any(|c| p[c].abs() < 1e-12 || (p[c] - 1.0).abs() < 1e-12) {
+                let u = exact(p);
+                fixed.push((i, [Some(u.x), Some(u.y), Some(u.z)]));
+                if let Some(j) = cut.enriched[i] {
+                    fixed.push((n_nodes + j, [Some(0.0); 3]));
+                }
+                if let Some(t) = cut.tip[i] {
+                    for k in 0..N_BRANCH {
+                        fixed.push((n_nodes + cut.n_enriched + N_BRANCH * t + k, [Some(0.0); 3]));
+                    }
+                }
+            }
+        }
+        let (n_tip, n_heaviside) = (cut.n_tip(), cut.n_heaviside());
+        let model = Model::build(ModelInput {
+            mesh,
+            material: MATERIAL,
+            formulation: Formulation::Linear,
+            cut: Some(cut),
+            fixed,
+            gravity: None,
+            body_force: None,
+            tractions: &[],
+            need_mass: false,
+        })
+        .unwrap();
+        let mut chol = Cholesky::new(&model.pattern).unwrap();
+        let sol = solve_static(&model, &mut chol, &StaticOptions::default()).unwrap();
+        // The residual of the exact state (standard DOFs linear, enriched 0):
+        // quadrature-level on the tip DOFs.
+        let residual = {
+            use xfem_cut::assembly::{evaluate, Request, Rotations, Workspace};
+            let mut d = vec![0.0; model.n_dofs()];
+            for (i, p) in model.mesh.nodes.iter().enumerate() {
+                d[3 * i..3 * i + 3].copy_from_slice(exact(p).as_slice());
+            }
+            let mut f = vec![0.0; model.n_dofs()];
+            evaluate(
+                &model,
+                &d,
+                &mut Rotations::identity(&model),
+                &mut Workspace::new(&model),
+                Request {
+                    forces: Some(&mut f),
+                    tangent: None,
+                    update_rotations: false,
+                    exact_tangent: false,
+                },
+            );
+            model
+                .equation
+                .iter()
+                .enumerate()
+                .filter(|(_, &eq)| eq != xfem_cut::model::NONE)
+                .fold(0.0f64, |a, (dof, _)| a.max(f[dof].abs()))
+        };
+        let mut worst: f64 = 0.0;
+        for e in 0..model.mesh.n_elements() {
+            for (x, _, side) in model.field_points(e) {
+                let (u, g) = model.field_at(&sol.d, e, &x, side);
+                worst = worst
+                    .max((u - exact(&x)).norm() / 1e-2)
+                    .max((g - eps).norm() / s);
+            }
+        }
+        let enriched: f64 = sol.d[3 * n_nodes..].iter().fold(0.0, |a, v| a.max(v.abs()));
+        println!("{kind:?}: {n_tip} tip, {n_heaviside} Heaviside nodes; residual of the exact state {residual:.1e}; worst relative field error {worst:.1e}, largest enriched DOF {enriched:.1e}");
+        assert!(
+            worst < 1e-9 && enriched < 1e-10,
+            "{kind:?}: {worst:e} {enriched:e}"
+        );
+    }
+}
+
+#[test]
+fn two_fronts_in_one_element_are_refused_naming_both() {
+    let fr = Front::new();
+    let a = fr.patch();
+    // A second cut parallel to the first, 0.05 above it: its front lies in
+    // the same elements at h = 1/4.
+    let b = PlanarPatch {
+        origin: a.origin + fr.n * 0.05,
+        ..a.clone()
+    };
+    let mesh = mesh(4, ElementKind::Tet4, 0.0);
+    let err = setup_cut(
+        &mesh,
+        &[CutInput::tip(&a, 1e-4, None), CutInput::tip(&b, 1e-4, None)],
+    )
+    .err()
+    .expect("refused");
+    let text = err.to_string();
+    println!("{text}");
+    assert!(text.contains("cut[0]") && text.contains("cut[1]"), "{text}");
+}
