@@ -360,10 +360,16 @@ impl CutSet {
 /// (all vertices on one side, farther than twice the snapping distance)
 /// never change. A path's strip moves, so every step of its sweep is checked.
 struct SweepIndex {
-    /// Per straight blade: start, end, (t_min, t_max) of the elements its plane reaches, sorted.
-    straight: Vec<(f64, f64, Vec<(f64, f64)>)>,
+    straight: Vec<StraightSweep>,
     /// Sweep spans of the other blades.
     paths: Vec<(f64, f64)>,
+}
+
+/// A straight blade's span and the (t_min, t_max) of the elements its plane reaches, sorted.
+struct StraightSweep {
+    start: f64,
+    end: f64,
+    ranges: Vec<(f64, f64)>,
 }
 
 impl SweepIndex {
@@ -415,7 +421,11 @@ impl SweepIndex {
                 ranges.push((tmin, tmax));
             }
             ranges.sort_by(|a, b| a.0.total_cmp(&b.0));
-            straight.push((b.start(), b.end(), ranges));
+            straight.push(StraightSweep {
+                start: b.start(),
+                end: b.end(),
+                ranges,
+            });
         }
         SweepIndex { straight, paths }
     }
@@ -427,13 +437,16 @@ impl SweepIndex {
             return true;
         }
         let margin = 1e-6;
-        self.straight.iter().any(|(start, end, ranges)| {
-            if !active(*start, *end) {
+        self.straight.iter().any(|sw| {
+            if !active(sw.start, sw.end) {
                 return false;
             }
-            let frac = |t: f64| ((t - start) / (end - start)).clamp(0.0, 1.0);
+            let frac = |t: f64| ((t - sw.start) / (sw.end - sw.start)).clamp(0.0, 1.0);
             let (f0, f1) = (frac(t0) - margin, frac(t1) + margin);
-            ranges.iter().take_while(|r| r.0 <= f1).any(|r| r.1 >= f0)
+            sw.ranges
+                .iter()
+                .take_while(|r| r.0 <= f1)
+                .any(|r| r.1 >= f0)
         })
     }
 }
@@ -594,14 +607,16 @@ pub struct Progressive {
 
 /// Runs a dynamic scene whose cuts may grow: `build` makes the model of the
 /// mesh with a cut set-up (the scene's loads, fixes, material);
-/// `observe(step, model, state)` sees every step (frames, probes, energies).
+/// `observe(step, model, integrator)` sees the start and every step: the
+/// state is `integrator.state`, `integrator.energies()` its energies (frames,
+/// probes, energy series).
 /// Starts at rest with the acceleration of the loads.
 pub fn run_dynamic(
     cuts: &CutSet,
     mesh: &TetMesh,
     build: &dyn Fn(Option<CutSetup>) -> Result<Model, ModelError>,
     opts: DynamicOptions,
-    mut observe: impl FnMut(usize, &Model, &State),
+    mut observe: impl FnMut(usize, &Model, &mut Newmark<'_>),
 ) -> Result<Progressive, BladeError> {
     // The scene's blades must cut the body and keep clear of the other cuts.
     cuts.completed(mesh)?;
@@ -625,7 +640,7 @@ pub fn run_dynamic(
         match carried.take() {
             None => {
                 nm.initialise_acceleration()?;
-                observe(0, &model, &nm.state);
+                observe(0, &model, &mut nm);
             }
             Some((state, mut event)) => {
                 nm.state = state;
@@ -645,7 +660,7 @@ pub fn run_dynamic(
             let step_time = t.elapsed().as_secs_f64();
             sweep.step_seconds += step_time;
             step += 1;
-            observe(step, &model, &nm.state);
+            observe(step, &model, &mut nm);
             let t = Instant::now();
             let t_now = nm.state.time;
             let setup = if index.may_change(t_now - opts.dt, t_now) {
@@ -665,7 +680,7 @@ pub fn run_dynamic(
         };
         let Some(setup) = grown else {
             sweep.factorisations += nm.factorisations() - counted;
-            let (state, _) = nm.into_parts();
+            let state = nm.state.clone();
             sweep.dofs_last = model.n_dofs();
             return Ok(Progressive {
                 model,
@@ -677,7 +692,8 @@ pub fn run_dynamic(
         let t = Instant::now();
         let before = nm.energies();
         sweep.factorisations += nm.factorisations() - counted;
-        let (state, old_chol) = nm.into_parts();
+        let state = nm.state.clone();
+        let old_chol = nm.into_cholesky();
         let new_model = build(setup)?;
         let mapped = map_state(&model, &new_model, &state);
         let pattern_changed = new_model.pattern.col_ptr != model.pattern.col_ptr

@@ -79,8 +79,8 @@ fn cut_events_keep_both_energies_and_refactorise_only_there() {
         };
         let build = |cut| model(&mesh, cut, formulation, g, None, true);
         let mut frames = 0;
-        let run = run_dynamic(&cuts, &mesh, &build, opts, |_, m, s| {
-            assert_eq!(s.d.len(), m.n_dofs());
+        let run = run_dynamic(&cuts, &mesh, &build, opts, |_, m, nm| {
+            assert_eq!(nm.state.d.len(), m.n_dofs());
             frames += 1;
         })
         .unwrap();
@@ -209,7 +209,8 @@ fn cut_progressive_settles_to_the_static_full_cut() {
     let ahead = Point3::new(0.0225, 0.03, 0.1);
     let mut worst_ahead: f64 = 0.0;
     let mut frames = Vec::new();
-    let run = run_dynamic(&cuts, &mesh, &build, options, |step, m, s| {
+    let run = run_dynamic(&cuts, &mesh, &build, options, |step, m, nm| {
+        let s = &nm.state;
         if m.cut.is_some() {
             worst_ahead = worst_ahead.max(opening(m, &s.d, ahead));
         }
@@ -296,7 +297,8 @@ fn run_and_check(
         mass,
         ..DynamicOptions::default()
     };
-    let run = run_dynamic(cuts, mesh, &build, opts, |_, _, s| {
+    let run = run_dynamic(cuts, mesh, &build, opts, |_, _, nm| {
+        let s = &nm.state;
         assert!(
             s.d.iter().chain(&s.v).all(|x| x.is_finite()),
             "{name}: not finite"
@@ -536,7 +538,8 @@ fn free_slice_made_by_two_blades_falls_with_g_after_the_second() {
         Point3::new(0.015, 0.03, 0.15),
     ];
     let mut before_second = None;
-    let run = run_dynamic(&cuts, &mesh, &build, opts, |_, m, s| {
+    let run = run_dynamic(&cuts, &mesh, &build, opts, |_, m, nm| {
+        let s = &nm.state;
         if m.free_parts().is_empty() {
             before_second = Some(s.time);
         }

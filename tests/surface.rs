@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{bar, model, relative_difference, solve};
+use common::{bar, case, model, relative_difference, solve};
 use nalgebra::{Point3, Vector3};
 use xfem_cut::blade::same_setup;
 use xfem_cut::cut::{setup_cut, CutSurface, PlanarPatch, DEFAULT_SNAP};
@@ -267,6 +267,55 @@ fn a_curved_incision_runs_static_and_dynamic_linear_and_corotational() {
         assert!(
             peak > 0.0 && worst <= bound * peak,
             "{formulation:?}: {worst:e} vs {peak:e}"
+        );
+    }
+}
+
+#[test]
+fn the_gmsh_curved_incision_case_runs_static_linear_and_corotational() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("cases/progressive/curved_incision.toml");
+    let (mut scene, cuts) = case::load(&path);
+    let xfem_cut::blade::CutItem::Surface(surface) = &cuts.items[0] else {
+        panic!("a surface cut")
+    };
+    // The gmsh triangles lie on the cylinder r = 0.03 about x = 0, z = 0.13 (chords: sagitta h²/8R ≈ 7e-5).
+    let exact = |x: f64, z: f64| 0.03 - (x * x + (z - 0.13) * (z - 0.13)).sqrt();
+    let sign =
+        surface.level_set(&Point3::new(0.005, 0.03, 0.09)).signum() * exact(0.005, 0.09).signum();
+    for &(x, z) in &[(0.005, 0.09), (0.01, 0.105), (0.015, 0.11), (0.0, 0.1)] {
+        let got = sign * surface.level_set(&Point3::new(x, 0.03, z));
+        assert!(
+            (got - exact(x, z)).abs() <= 1e-4,
+            "({x}, {z}): {got} vs {}",
+            exact(x, z)
+        );
+    }
+    let mesh = scene.mesh(1).unwrap();
+    let setup = cuts.completed(&mesh).unwrap().unwrap();
+    println!(
+        "curved incision at level 1: {} cut elements ({} with the front), {} enriched nodes",
+        setup.n_cut(),
+        setup.n_partial(),
+        setup.n_enriched
+    );
+    assert!(setup.n_partial() > 0);
+    for formulation in [Formulation::Linear, Formulation::Corotational] {
+        scene.formulation = formulation;
+        let m = case::build(&scene, &mesh, Some(setup.clone())).unwrap();
+        let d = solve(&m);
+        let on_arc = |x: f64| Point3::new(x, 0.03, 0.13 - (0.03f64 * 0.03 - x * x).sqrt());
+        let (behind, ahead) = (
+            jump(&m, &d, on_arc(0.005)),
+            jump(&m, &d, Point3::new(0.027, 0.03, 0.11)),
+        );
+        let top = m
+            .node_displacement(&d, m.mesh.nodes.iter().position(|p| p.z == 0.2).unwrap(), 0)
+            .norm();
+        println!("{formulation:?}: top {top:.4e} m, opening behind the front {behind:.3e}, ahead {ahead:e}");
+        assert!(
+            behind > 1e-3 * top && ahead <= 1e-12 * top,
+            "{behind:e} {ahead:e}"
         );
     }
 }

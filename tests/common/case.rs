@@ -55,6 +55,10 @@ pub fn load(path: &Path) -> (Scene, CutSet) {
                     Blade::new(index, times.into_iter().zip(path).collect()).unwrap()
                 };
                 items.push(CutItem::Blade(blade));
+            } else if let Some(file) = t.get("surface") {
+                let file = path.parent().unwrap().join(file.as_str().unwrap());
+                let surface = xfem_cut::surface::TriangleSurface::read(&file).unwrap();
+                items.push(CutItem::Surface(Box::new(surface)));
             } else {
                 let patch = xfem_cut::cut::PlanarPatch {
                     origin: point(&t["origin"]),
