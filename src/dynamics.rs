@@ -129,6 +129,104 @@ pub struct StepReport {
     pub fallbacks: usize,
 }
 
+/// Per-step figures of a run, collected step by step (what `run` reports:
+/// per-step time median and max, Newton and CG iterations, factorisations).
+#[derive(Debug, Clone, Default)]
+pub struct StepStats {
+    seconds: Vec<f64>,
+    newton: Vec<usize>,
+    cg: usize,
+    factorisations: usize,
+    fallbacks: usize,
+}
+
+/// The summary of a [`StepStats`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepSummary {
+    pub steps: usize,
+    pub seconds_median: f64,
+    pub seconds_max: f64,
+    pub newton_mean: f64,
+    pub newton_max: usize,
+    pub cg_per_step: f64,
+    pub factorisations_per_step: f64,
+    /// Iterations that fell back from the exact tangent to R K Rᵀ.
+    pub fallbacks: usize,
+}
+
+impl StepStats {
+    /// Room for `steps` steps (so that recording allocates nothing).
+    pub fn with_capacity(steps: usize) -> StepStats {
+        StepStats {
+            seconds: Vec::with_capacity(steps),
+            newton: Vec::with_capacity(steps),
+            ..StepStats::default()
+        }
+    }
+
+    /// Records one step: its report and its wall time.
+    pub fn record(&mut self, report: &StepReport, seconds: f64) {
+        self.seconds.push(seconds);
+        self.newton.push(report.iterations);
+        self.cg += report.cg_iterations;
+        self.factorisations += report.factorisations;
+        self.fallbacks += report.fallbacks;
+    }
+
+    /// Newton iterations of each recorded step.
+    pub fn newton_iterations(&self) -> &[usize] {
+        &self.newton
+    }
+
+    pub fn summary(&self) -> StepSummary {
+        let steps = self.seconds.len();
+        let mut sorted = self.seconds.clone();
+        sorted.sort_by(f64::total_cmp);
+        let median = match steps {
+            0 => 0.0,
+            n if n % 2 == 1 => sorted[n / 2],
+            n => 0.5 * (sorted[n / 2 - 1] + sorted[n / 2]),
+        };
+        let per_step = |x: usize| {
+            if steps == 0 {
+                0.0
+            } else {
+                x as f64 / steps as f64
+            }
+        };
+        StepSummary {
+            steps,
+            seconds_median: median,
+            seconds_max: sorted.last().copied().unwrap_or(0.0),
+            newton_mean: per_step(self.newton.iter().sum()),
+            newton_max: self.newton.iter().copied().max().unwrap_or(0),
+            cg_per_step: per_step(self.cg),
+            factorisations_per_step: per_step(self.factorisations),
+            fallbacks: self.fallbacks,
+        }
+    }
+}
+
+impl std::fmt::Display for StepSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} steps: {:.3} ms a step (median), {:.3} ms max; Newton {:.2} a step (max {}), CG {:.1} a step, {:.2} factorisations a step",
+            self.steps,
+            self.seconds_median * 1e3,
+            self.seconds_max * 1e3,
+            self.newton_mean,
+            self.newton_max,
+            self.cg_per_step,
+            self.factorisations_per_step
+        )?;
+        if self.fallbacks > 0 {
+            write!(f, ", {} R K Rᵀ fallbacks", self.fallbacks)?;
+        }
+        Ok(())
+    }
+}
+
 /// The mass matrix as the step uses it: a product y = M x and the entries
 /// that add c M into K_eff, both precomputed once (seed eq. 81–82 for the
 /// lumped X-FEM mass).
@@ -771,6 +869,37 @@ mod tests {
     /// K_eff(rest) Qᵀ (R M Rᵀ = M, the tangents rotate with the body), so the
     /// warped rest factor is the exact inverse: CG converges in one iteration
     /// per Newton iteration, where the unwarped (lagged) factor needs many.
+    #[test]
+    fn step_stats_summarise_medians_maxima_and_rates() {
+        let mut stats = StepStats::with_capacity(4);
+        for (k, (iterations, seconds)) in [(3, 0.004), (5, 0.010), (4, 0.002), (4, 0.006)]
+            .into_iter()
+            .enumerate()
+        {
+            let report = StepReport {
+                iterations,
+                factorisations: iterations,
+                cg_iterations: 10 * k,
+                fallbacks: usize::from(k == 2),
+                ..StepReport::default()
+            };
+            stats.record(&report, seconds);
+        }
+        let s = stats.summary();
+        assert_eq!(s.steps, 4);
+        assert_eq!(s.seconds_median, 0.005);
+        assert_eq!(s.seconds_max, 0.010);
+        assert_eq!((s.newton_mean, s.newton_max), (4.0, 5));
+        assert_eq!((s.cg_per_step, s.factorisations_per_step), (15.0, 4.0));
+        assert_eq!(s.fallbacks, 1);
+        assert_eq!(stats.newton_iterations(), &[3, 5, 4, 4]);
+        assert_eq!(
+            s.to_string(),
+            "4 steps: 5.000 ms a step (median), 10.000 ms max; Newton 4.00 a step (max 5), CG 15.0 a step, 4.00 factorisations a step, 1 R K Rᵀ fallbacks"
+        );
+        assert_eq!(StepStats::default().summary().steps, 0);
+    }
+
     #[test]
     fn the_warped_rest_factor_is_exact_for_a_rigid_rotation() {
         let model = free_block();
