@@ -501,6 +501,12 @@ impl<'m> Newmark<'m> {
         })
     }
 
+    /// Runs the element loops on `parallelism`'s threads (the factorisation's
+    /// threads are the [`Cholesky`]'s, set where it is built).
+    pub fn set_parallelism(&mut self, parallelism: crate::solve::Parallelism) {
+        self.ws = Workspace::with_parallelism(self.model, parallelism);
+    }
+
     /// The options the integrator runs with.
     pub fn options(&self) -> &DynamicOptions {
         &self.opts
