@@ -423,7 +423,7 @@ pub fn write_report(reports: &Path, criterion_dir: &Path, machine: &str) -> Resu
     if let Some(section) = corotational_section(reports)? {
         md.push_str(&section);
     }
-    let benches = criterion_medians(criterion_dir);
+    let benches = benches_kept(reports, criterion_medians(criterion_dir))?;
     if let Some(table) = cut_cost(&benches) {
         md.push_str(&table);
     }
@@ -468,6 +468,33 @@ pub fn write_report(reports: &Path, criterion_dir: &Path, machine: &str) -> Resu
     let tmp = reports.join("README.md.tmp");
     std::fs::write(&tmp, md).map_err(|e| e.to_string())?;
     std::fs::rename(&tmp, reports.join("README.md")).map_err(|e| e.to_string())
+}
+
+/// Criterion medians kept in `reports/data/benches.csv` (id, median ns): written when
+/// `target/criterion` has them, read back when it has none (a checkout that did not run
+/// `make bench-report`), so regenerating the report keeps the last measured benchmarks.
+fn benches_kept(reports: &Path, fresh: Vec<(String, f64)>) -> Result<Vec<(String, f64)>, String> {
+    let path = reports.join("data/benches.csv");
+    if !fresh.is_empty() {
+        let mut text = String::from("id,median_ns\n");
+        for (id, ns) in &fresh {
+            let _ = writeln!(text, "{id},{ns:e}");
+        }
+        std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))?;
+        return Ok(fresh);
+    }
+    let Ok(text) = std::fs::read_to_string(&path) else {
+        return Ok(Vec::new());
+    };
+    text.lines()
+        .skip(1)
+        .filter(|l| !l.trim().is_empty())
+        .map(|l| {
+            l.rsplit_once(',')
+                .and_then(|(id, ns)| Some((id.to_string(), ns.trim().parse().ok()?)))
+                .ok_or_else(|| format!("{}: bad row `{l}`", path.display()))
+        })
+        .collect()
 }
 
 /// The median (ns) of the benchmark of `group` whose id holds every part
@@ -617,6 +644,25 @@ mod tests {
         assert_eq!(fitted_order(&refs, None).1.len(), 5);
         // One resolved level is no fit.
         assert!(fitted_order(&refs, Some(&quality(0.02))).0.is_none());
+    }
+
+    #[test]
+    fn benchmarks_are_kept_when_criterion_has_none() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir(dir.path().join("data")).unwrap();
+        assert!(benches_kept(dir.path(), Vec::new()).unwrap().is_empty());
+        let fresh = vec![(
+            "cut-step/linear-cut_tet4_1188tets-54cut/1k".to_string(),
+            1.5e5,
+        )];
+        assert_eq!(benches_kept(dir.path(), fresh.clone()).unwrap(), fresh);
+        assert_eq!(benches_kept(dir.path(), Vec::new()).unwrap(), fresh);
+        std::fs::write(
+            dir.path().join("data/benches.csv"),
+            "id,median_ns\nx,notanumber\n",
+        )
+        .unwrap();
+        assert!(benches_kept(dir.path(), Vec::new()).is_err());
     }
 
     #[test]
