@@ -47,6 +47,8 @@ pub trait CutSurface: Send + Sync {
     fn overlaps(&self, poly: &[Point3<f64>]) -> bool;
     /// Whether `x` (on the surface) lies in the patch, with relative tolerance `tol`.
     fn contains(&self, x: &Point3<f64>, tol: f64) -> bool;
+    /// The surface's boundary segments (the front where they lie inside the body).
+    fn boundary(&self) -> Vec<[Point3<f64>; 2]>;
 }
 
 impl PlanarPatch {
@@ -126,6 +128,16 @@ impl CutSurface for PlanarPatch {
     fn contains(&self, x: &Point3<f64>, tol: f64) -> bool {
         let (s, t) = self.coordinates(x);
         (-tol..=1.0 + tol).contains(&s) && (-tol..=1.0 + tol).contains(&t)
+    }
+
+    fn boundary(&self) -> Vec<[Point3<f64>; 2]> {
+        let c = [
+            self.origin,
+            self.origin + self.u,
+            self.origin + self.u + self.v,
+            self.origin + self.v,
+        ];
+        (0..4).map(|k| [c[k], c[(k + 1) % 4]]).collect()
     }
 }
 

@@ -13,6 +13,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod assembly;
+pub mod blade;
 pub mod corotation;
 pub mod cut;
 pub mod dynamics;
@@ -25,9 +26,12 @@ pub mod material;
 pub mod mesh;
 pub mod model;
 pub mod output;
+pub mod plan;
 pub mod quadrature;
 pub mod run;
 pub mod scene;
+pub mod setup;
 pub mod solve;
 pub mod statics;
 pub mod study;
+pub mod surface;

@@ -126,3 +126,42 @@ pub fn write_probes(
 ) -> Result<(), RunError> {
     write_probes_csv(path, points, values).map_err(out_err)
 }
+
+/// VTK line cell (a blade's edge in the progressive series).
+const VTK_LINE: u8 = 3;
+
+/// One frame of a progressive cut: the picture of `model` (the cut as it is
+/// at that time: opened behind the blade, extended through the front
+/// elements) plus each blade edge as a line cell with `cut` flag 4 and zero
+/// displacement (the edge is drawn where it is, in space).
+pub fn progressive_frame(model: &Model, d: &[f64], edges: &[[Point3<f64>; 2]]) -> VtuData {
+    let mut pic = picture(model, d);
+    for e in edges {
+        let k = pic.points.len();
+        pic.points.extend_from_slice(e);
+        pic.disp.extend([Vector3::zeros(), Vector3::zeros()]);
+        pic.cells.push((VTK_LINE, vec![k, k + 1]));
+        pic.cut_flag.push(4);
+    }
+    vtu_data(&pic)
+}
+
+/// Writes a progressive run's frames (each its own model's picture, from
+/// [`progressive_frame`]) as `frames/result_K.vtu` and `result.pvd`, and the
+/// last frame as `result.vtu`; each file whole or not at all.
+pub fn write_progressive(out: &Path, frames: &[(f64, VtuData)]) -> Result<(), RunError> {
+    let dir = out.join("frames");
+    std::fs::create_dir_all(&dir)
+        .map_err(|e| RunError::Output(format!("{}: {e}", dir.display())))?;
+    let mut series = Vec::with_capacity(frames.len());
+    for (k, (t, data)) in frames.iter().enumerate() {
+        let name = format!("frames/result_{k:05}.vtu");
+        write_vtu(&out.join(&name), data).map_err(out_err)?;
+        series.push((*t, name));
+    }
+    write_pvd(&out.join("result.pvd"), &series).map_err(out_err)?;
+    if let Some((_, last)) = frames.last() {
+        write_vtu(&out.join("result.vtu"), last).map_err(out_err)?;
+    }
+    Ok(())
+}

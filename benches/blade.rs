@@ -1,0 +1,138 @@
+//! Criterion benches of progressive cuts: one cut event (set-up at the new
+//! time, model rebuilt, state mapped, symbolic factorisation, then the step
+//! after it with its numeric refactorisation) against a step during the sweep
+//! and a step of the uncut beam, Tet4 1k/10k and Tet10 1k, linear and
+//! corotational. Short runs: `cargo bench --bench blade -- --warm-up-time 1 --measurement-time 2`.
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use nalgebra::{Point3, Vector3};
+use std::hint::black_box;
+use xfem_cut::blade::{map_state, same_setup, Blade, CutItem, CutSet};
+use xfem_cut::cut::{CutSetup, DEFAULT_SNAP};
+use xfem_cut::dynamics::{DynamicOptions, Newmark};
+use xfem_cut::material::Material;
+use xfem_cut::mesh::{box_mesh, TetMesh};
+use xfem_cut::model::{Formulation, Model, ModelInput};
+use xfem_cut::solve::Cholesky;
+
+fn model(mesh: &TetMesh, cut: Option<CutSetup>, formulation: Formulation) -> Model {
+    let fixed = mesh
+        .nodes
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.z.abs() < 1e-12)
+        .map(|(i, _)| (i, [Some(0.0); 3]))
+        .collect();
+    Model::build(ModelInput {
+        mesh: mesh.clone(),
+        material: Material {
+            young: 3.0e5,
+            poisson: 0.35,
+            density: 1070.0,
+        },
+        formulation,
+        cut,
+        fixed,
+        gravity: Some(Vector3::new(9.81, 0.0, 0.0)),
+        body_force: None,
+        tractions: &[],
+        need_mass: true,
+    })
+    .unwrap()
+}
+
+/// A blade opening the seed's cut (x from 0 to 0.015 at z = 0.1) during [0, 1] s.
+fn cuts() -> CutSet {
+    let blade = Blade::straight(
+        0,
+        Point3::new(0.0, -0.01, 0.1),
+        Point3::new(0.0, 0.07, 0.1),
+        Vector3::new(0.015, 0.0, 0.0),
+        0.0,
+        1.0,
+    )
+    .unwrap();
+    CutSet {
+        items: vec![CutItem::Blade(blade)],
+        snap: DEFAULT_SNAP,
+    }
+}
+
+fn benches(c: &mut Criterion) {
+    let opts = DynamicOptions {
+        dt: 0.005,
+        ..DynamicOptions::default()
+    };
+    let mut group = c.benchmark_group("blade");
+    group.sample_size(10);
+    for (size, div, tet10) in [
+        ("tet4_1k", [3, 6, 10], false),
+        ("tet4_10k", [6, 12, 24], false),
+        ("tet10_1k", [3, 6, 10], true),
+    ] {
+        let m = box_mesh(Point3::origin(), Point3::new(0.03, 0.06, 0.2), div);
+        let mesh = if tet10 { m.to_tet10() } else { m };
+        let cuts = cuts();
+        // The set-up half-way, and the time of the next event after it.
+        let t_a = 0.5;
+        let setup_a = cuts.setup_at(&mesh, t_a).unwrap();
+        let mut t_b = t_a;
+        let setup_b = loop {
+            t_b += opts.dt;
+            let s = cuts.setup_at(&mesh, t_b).unwrap();
+            if !same_setup(setup_a.as_ref(), s.as_ref()) || t_b > 1.0 {
+                break s;
+            }
+        };
+        for formulation in [Formulation::Linear, Formulation::Corotational] {
+            let name = format!("{size}_{formulation:?}").to_lowercase();
+            let uncut = model(&mesh, None, formulation);
+            let mut nm =
+                Newmark::new(&uncut, Cholesky::new(&uncut.pattern).unwrap(), opts).unwrap();
+            nm.initialise_acceleration().unwrap();
+            for _ in 0..3 {
+                nm.step().unwrap();
+            }
+            group.bench_function(BenchmarkId::new("step_uncut", &name), |b| {
+                b.iter(|| black_box(nm.step().unwrap()))
+            });
+            let model_a = model(&mesh, setup_a.clone(), formulation);
+            let mut nm =
+                Newmark::new(&model_a, Cholesky::new(&model_a.pattern).unwrap(), opts).unwrap();
+            nm.initialise_acceleration().unwrap();
+            for _ in 0..3 {
+                nm.step().unwrap();
+            }
+            let state_a = nm.state.clone();
+            group.bench_function(BenchmarkId::new("step_sweep", &name), |b| {
+                b.iter(|| black_box(nm.step().unwrap()))
+            });
+            // What an event adds: check + set-up, model, state map, symbolic; then the step after it.
+            group.bench_function(BenchmarkId::new("event_and_step", &name), |b| {
+                b.iter(|| {
+                    let s = cuts.setup_at(&mesh, t_b).unwrap();
+                    let model_b = model(&mesh, s, formulation);
+                    let mapped = map_state(&model_a, &model_b, &state_a);
+                    let chol = Cholesky::new(&model_b.pattern).unwrap();
+                    let mut nb = Newmark::new(&model_b, chol, opts).unwrap();
+                    nb.state = mapped;
+                    black_box(nb.step().unwrap())
+                })
+            });
+            group.bench_function(BenchmarkId::new("setup", &name), |b| {
+                b.iter(|| black_box(cuts.setup_at(&mesh, t_b).unwrap()))
+            });
+            group.bench_function(BenchmarkId::new("model", &name), |b| {
+                b.iter(|| black_box(model(&mesh, setup_b.clone(), formulation)))
+            });
+            let model_b = model(&mesh, setup_b.clone(), formulation);
+            group.bench_function(BenchmarkId::new("symbolic", &name), |b| {
+                b.iter(|| black_box(Cholesky::new(&model_b.pattern).unwrap()))
+            });
+        }
+    }
+    group.finish();
+}
+
+criterion_group!(blade_benches, benches);
+criterion_main!(blade_benches);

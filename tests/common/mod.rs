@@ -1,0 +1,77 @@
+//! Shared builders for the surface and blade tests: a 1 × 1 × 2 bar, bottom
+//! face clamped, gravity, models built through the library.
+#![allow(dead_code)]
+
+pub mod case;
+
+use nalgebra::{Point3, Vector3};
+use xfem_cut::cut::CutSetup;
+use xfem_cut::material::Material;
+use xfem_cut::mesh::{box_mesh, TetMesh};
+use xfem_cut::model::{Formulation, Model, ModelError, ModelInput};
+use xfem_cut::solve::Cholesky;
+use xfem_cut::statics::{solve_static, StaticOptions};
+
+pub fn bar(div: [usize; 3]) -> TetMesh {
+    box_mesh(Point3::origin(), Point3::new(1.0, 1.0, 2.0), div)
+}
+
+pub const MATERIAL: Material = Material {
+    young: 1.0e4,
+    poisson: 0.3,
+    density: 1000.0,
+};
+
+/// The bar's model: bottom (z = 0) clamped, gravity `g`, optionally the top (z = 2) moved by `top`.
+pub fn model(
+    mesh: &TetMesh,
+    cut: Option<CutSetup>,
+    formulation: Formulation,
+    g: Vector3<f64>,
+    top: Option<Vector3<f64>>,
+    need_mass: bool,
+) -> Result<Model, ModelError> {
+    let mut fixed = Vec::new();
+    for (i, p) in mesh.nodes.iter().enumerate() {
+        if p.z == 0.0 {
+            fixed.push((i, [Some(0.0); 3]));
+        } else if let (Some(t), true) = (top, p.z == 2.0) {
+            fixed.push((i, [Some(t.x), Some(t.y), Some(t.z)]));
+        }
+    }
+    Model::build(ModelInput {
+        mesh: mesh.clone(),
+        material: MATERIAL,
+        formulation,
+        cut,
+        fixed,
+        gravity: Some(g),
+        body_force: None,
+        tractions: &[],
+        need_mass,
+    })
+}
+
+/// Static solution of a model (all DOFs).
+pub fn solve(model: &Model) -> Vec<f64> {
+    let mut chol = Cholesky::new(&model.pattern).unwrap();
+    let sol = solve_static(model, &mut chol, &StaticOptions::default()).unwrap();
+    assert!(sol.residual <= 1e-9, "residual {:e}", sol.residual);
+    sol.d
+}
+
+/// Largest nodal difference of two solutions on the same mesh, seen from both sides, relative to the largest value.
+pub fn relative_difference(a: &Model, da: &[f64], b: &Model, db: &[f64]) -> f64 {
+    let (mut diff, mut scale): (f64, f64) = (0.0, 0.0);
+    for i in 0..a.mesh.n_nodes() {
+        for side in [-1i8, 1] {
+            let (x, y) = (
+                a.node_displacement(da, i, side),
+                b.node_displacement(db, i, side),
+            );
+            diff = diff.max((x - y).norm());
+            scale = scale.max(x.norm());
+        }
+    }
+    diff / scale
+}

@@ -1,0 +1,321 @@
+#![allow(clippy::needless_range_loop)]
+//! Cut surfaces from triangle meshes: a planar patch written as STL (ASCII,
+//! binary) or as gmsh triangles gives the patch's cut set-up and solution;
+//! an open curved incision runs static and dynamic, linear and corotational.
+
+mod common;
+
+use common::{bar, case, model, relative_difference, solve};
+use nalgebra::{Point3, Vector3};
+use xfem_cut::blade::same_setup;
+use xfem_cut::cut::{setup_cut, CutSurface, PlanarPatch, DEFAULT_SNAP};
+use xfem_cut::dynamics::{DynamicOptions, Newmark};
+use xfem_cut::locate::Locator;
+use xfem_cut::model::{Formulation, Model};
+use xfem_cut::solve::Cholesky;
+use xfem_cut::surface::{ascii_stl, TriangleSurface};
+
+/// The patch (f32-exact corners, as STL stores them): z = 1.15625 between
+/// node layers, front x = 0.625 inside elements of a 3-division bar.
+fn patch() -> PlanarPatch {
+    PlanarPatch {
+        origin: Point3::new(-0.5, -0.5, 1.15625),
+        u: Vector3::new(1.125, 0.0, 0.0),
+        v: Vector3::new(0.0, 2.0, 0.0),
+    }
+}
+
+/// The patch as an n × n grid of quads, two triangles each (inner edges and vertices too).
+fn patch_triangles(p: &PlanarPatch, n: usize) -> (Vec<Point3<f64>>, Vec<[usize; 3]>) {
+    let mut v = Vec::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            let (s, t) = (i as f64 / n as f64, j as f64 / n as f64);
+            v.push(p.origin + p.u * s + p.v * t);
+        }
+    }
+    let id = |i: usize, j: usize| j * (n + 1) + i;
+    let mut tris = Vec::new();
+    for j in 0..n {
+        for i in 0..n {
+            tris.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            tris.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    (v, tris)
+}
+
+fn gmsh_triangles(v: &[Point3<f64>], tris: &[[usize; 3]]) -> String {
+    let mut s = String::from("$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n");
+    s += &format!("1 {} 1 {}\n2 1 0 {}\n", v.len(), v.len(), v.len());
+    for i in 0..v.len() {
+        s += &format!("{}\n", i + 1);
+    }
+    for p in v {
+        s += &format!("{:e} {:e} {:e}\n", p.x, p.y, p.z);
+    }
+    s += &format!(
+        "$EndNodes\n$Elements\n1 {} 1 {}\n2 1 2 {}\n",
+        tris.len(),
+        tris.len(),
+        tris.len()
+    );
+    for (k, t) in tris.iter().enumerate() {
+        s += &format!("{} {} {} {}\n", k + 1, t[0] + 1, t[1] + 1, t[2] + 1);
+    }
+    s += "$EndElements\n";
+    s
+}
+
+#[test]
+fn a_planar_patch_written_as_triangles_equals_the_patch() {
+    let mesh = bar([3, 3, 6]);
+    let p = patch();
+    let reference = setup_cut(&mesh, &[&p], DEFAULT_SNAP).unwrap();
+    assert!(
+        reference.n_partial() > 0,
+        "the front must lie inside elements"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let mut files = Vec::new();
+    for n in [1, 4] {
+        let (v, tris) = patch_triangles(&p, n);
+        let ascii = dir.path().join(format!("patch{n}.stl"));
+        std::fs::write(&ascii, ascii_stl(&v, &tris)).unwrap();
+        let binary = dir.path().join(format!("patch{n}_binary.stl"));
+        let stl: Vec<stl_io::Triangle> = tris
+            .iter()
+            .map(|t| stl_io::Triangle {
+                normal: stl_io::Normal::new([0.0, 0.0, 1.0]),
+                vertices: t
+                    .map(|i| stl_io::Vertex::new([v[i].x as f32, v[i].y as f32, v[i].z as f32])),
+            })
+            .collect();
+        let mut f = std::fs::File::create(&binary).unwrap();
+        stl_io::write_stl(&mut f, stl.iter()).unwrap();
+        let msh = dir.path().join(format!("patch{n}.msh"));
+        std::fs::write(&msh, gmsh_triangles(&v, &tris)).unwrap();
+        files.extend([ascii, binary, msh]);
+    }
+    let d_ref = {
+        let m = model(
+            &mesh,
+            Some(reference.clone()),
+            Formulation::Linear,
+            Vector3::new(-9.81, 0.0, 0.0),
+            None,
+            false,
+        )
+        .unwrap();
+        let d = solve(&m);
+        (m, d)
+    };
+    for file in &files {
+        let s = TriangleSurface::read(file).unwrap();
+        assert_eq!(
+            s.boundary().len(),
+            if s.n_triangles() == 2 { 4 } else { 16 }
+        );
+        let setup = setup_cut(&mesh, &[&s], DEFAULT_SNAP).unwrap();
+        let phi = setup
+            .phi
+            .iter()
+            .zip(&reference.phi)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(
+            phi <= 1e-14,
+            "{}: level sets differ by {phi:e}",
+            file.display()
+        );
+        assert!(
+            same_setup(Some(&setup), Some(&reference)),
+            "{}: set-ups differ",
+            file.display()
+        );
+        let m = model(
+            &mesh,
+            Some(setup),
+            Formulation::Linear,
+            Vector3::new(-9.81, 0.0, 0.0),
+            None,
+            false,
+        )
+        .unwrap();
+        let d = solve(&m);
+        let diff = relative_difference(&d_ref.0, &d_ref.1, &m, &d);
+        println!(
+            "{}: {} triangles, solution differs by {diff:e}",
+            file.display(),
+            s.n_triangles()
+        );
+        assert!(diff <= 1e-10, "{}: {diff:e}", file.display());
+    }
+}
+
+/// An open cylindrical arc: the circle of radius 1.5 about (x, z) = (0, 2.6),
+/// angles −0.3…0.45 rad, y ∈ [−0.5, 1.5]: it enters through x = 0 at
+/// z ≈ 1.1 and ends inside the bar at x ≈ 0.65, z ≈ 1.25.
+fn arc() -> TriangleSurface {
+    let (na, ny) = (16, 3);
+    let mut v = Vec::new();
+    for j in 0..=ny {
+        for i in 0..=na {
+            let th = -0.3 + 0.75 * i as f64 / na as f64;
+            let y = -0.5 + 2.0 * j as f64 / ny as f64;
+            v.push(Point3::new(1.5 * th.sin(), y, 2.6 - 1.5 * th.cos()));
+        }
+    }
+    let id = |i: usize, j: usize| j * (na + 1) + i;
+    let mut tris = Vec::new();
+    for j in 0..ny {
+        for i in 0..na {
+            tris.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            tris.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    TriangleSurface::new(v, tris, std::path::Path::new("arc")).unwrap()
+}
+
+/// Jump of the displacement across the surface at x (on it): + side minus − side.
+fn jump(m: &Model, d: &[f64], x: Point3<f64>) -> f64 {
+    let loc = Locator::new(&m.mesh);
+    let (e, _) = loc.locate(&m.mesh, &x).unwrap();
+    (m.displacement_at(d, e, &x, 1) - m.displacement_at(d, e, &x, -1)).norm()
+}
+
+#[test]
+fn a_curved_incision_runs_static_and_dynamic_linear_and_corotational() {
+    let mesh = bar([4, 3, 8]);
+    let s = arc();
+    // The level set is the distance to the circle inside the arc's angular range.
+    for &(x, z) in &[(0.2, 1.0), (0.3, 1.4), (0.0, 0.9)] {
+        let want = 1.5 - ((x - 0.0f64).powi(2) + (z - 2.6f64).powi(2)).sqrt();
+        let got = s.level_set(&Point3::new(x, 0.4, z));
+        assert!((got - want).abs() <= 2e-3, "({x}, {z}): {got} vs {want}");
+    }
+    let setup = setup_cut(&mesh, &[&s], DEFAULT_SNAP).unwrap();
+    assert!(setup.n_cut() > 0 && setup.n_enriched > 0);
+    println!(
+        "arc: {} cut elements ({} with the front), {} enriched nodes",
+        setup.n_cut(),
+        setup.n_partial(),
+        setup.n_enriched
+    );
+    // On the arc behind the front (angle 0.1) and on its plane extension ahead (angle 0.7).
+    let on_arc = |th: f64| Point3::new(1.5 * f64::sin(th), 0.5, 2.6 - 1.5 * f64::cos(th));
+    for formulation in [Formulation::Linear, Formulation::Corotational] {
+        // Static: the top face pulled up opens the incision; ahead of the front the field is continuous.
+        let m = model(
+            &mesh,
+            Some(setup.clone()),
+            formulation,
+            Vector3::zeros(),
+            Some(Vector3::new(0.0, 0.0, 0.1)),
+            true,
+        )
+        .unwrap();
+        let d = solve(&m);
+        let (behind, ahead) = (
+            jump(&m, &d, on_arc(0.1)),
+            jump(&m, &d, Point3::new(0.95, 0.5, 1.35)),
+        );
+        println!("{formulation:?} static: opening behind the front {behind:e}, ahead {ahead:e}");
+        assert!(
+            behind > 1e-3,
+            "{formulation:?}: the incision does not open ({behind:e})"
+        );
+        assert!(
+            ahead <= 1e-12 * behind,
+            "{formulation:?}: a jump ahead of the front ({ahead:e})"
+        );
+        // Dynamic: gravity across the bar; linear Newmark (average acceleration) conserves
+        // kinetic + strain − work exactly, the corotational one nearly.
+        let m = model(
+            &mesh,
+            Some(setup.clone()),
+            formulation,
+            Vector3::new(-9.81, 0.0, 0.0),
+            None,
+            true,
+        )
+        .unwrap();
+        let opts = DynamicOptions {
+            dt: 0.02,
+            steps: 30,
+            ..DynamicOptions::default()
+        };
+        let mut nm = Newmark::new(&m, Cholesky::new(&m.pattern).unwrap(), opts).unwrap();
+        nm.initialise_acceleration().unwrap();
+        let mut worst: f64 = 0.0;
+        let mut peak: f64 = 0.0;
+        for _ in 0..opts.steps {
+            nm.step().unwrap();
+            let e = nm.energies();
+            assert!(e.kinetic.is_finite() && e.strain.is_finite());
+            worst = worst.max((e.kinetic + e.strain - e.external_work).abs());
+            peak = peak.max(e.strain);
+        }
+        println!(
+            "{formulation:?} dynamic: energy balance {worst:e} of peak strain energy {peak:e}"
+        );
+        let bound = if formulation == Formulation::Linear {
+            1e-8
+        } else {
+            1e-2
+        };
+        assert!(
+            peak > 0.0 && worst <= bound * peak,
+            "{formulation:?}: {worst:e} vs {peak:e}"
+        );
+    }
+}
+
+#[test]
+fn the_gmsh_curved_incision_case_runs_static_linear_and_corotational() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("cases/progressive/curved_incision.toml");
+    let (mut scene, cuts) = case::load(&path);
+    let xfem_cut::blade::CutItem::Surface(surface) = &cuts.items[0] else {
+        panic!("a surface cut")
+    };
+    // The gmsh triangles lie on the cylinder r = 0.03 about x = 0, z = 0.13 (chords: sagitta h²/8R ≈ 7e-5).
+    let exact = |x: f64, z: f64| 0.03 - (x * x + (z - 0.13) * (z - 0.13)).sqrt();
+    let sign =
+        surface.level_set(&Point3::new(0.005, 0.03, 0.09)).signum() * exact(0.005, 0.09).signum();
+    for &(x, z) in &[(0.005, 0.09), (0.01, 0.105), (0.015, 0.11), (0.0, 0.1)] {
+        let got = sign * surface.level_set(&Point3::new(x, 0.03, z));
+        assert!(
+            (got - exact(x, z)).abs() <= 1e-4,
+            "({x}, {z}): {got} vs {}",
+            exact(x, z)
+        );
+    }
+    let mesh = scene.mesh(1).unwrap();
+    let setup = cuts.completed(&mesh).unwrap().unwrap();
+    println!(
+        "curved incision at level 1: {} cut elements ({} with the front), {} enriched nodes",
+        setup.n_cut(),
+        setup.n_partial(),
+        setup.n_enriched
+    );
+    assert!(setup.n_partial() > 0);
+    for formulation in [Formulation::Linear, Formulation::Corotational] {
+        scene.formulation = formulation;
+        let m = case::build(&scene, &mesh, Some(setup.clone())).unwrap();
+        let d = solve(&m);
+        let on_arc = |x: f64| Point3::new(x, 0.03, 0.13 - (0.03f64 * 0.03 - x * x).sqrt());
+        let (behind, ahead) = (
+            jump(&m, &d, on_arc(0.005)),
+            jump(&m, &d, Point3::new(0.027, 0.03, 0.11)),
+        );
+        let top = m
+            .node_displacement(&d, m.mesh.nodes.iter().position(|p| p.z == 0.2).unwrap(), 0)
+            .norm();
+        println!("{formulation:?}: top {top:.4e} m, opening behind the front {behind:.3e}, ahead {ahead:e}");
+        assert!(
+            behind > 1e-3 * top && ahead <= 1e-12 * top,
+            "{behind:e} {ahead:e}"
+        );
+    }
+}
