@@ -111,7 +111,17 @@ impl Blade {
                 return Err(err(key, message));
             }
         }
-        Ok(Blade { keyframes, index })
+        let blade = Blade { keyframes, index };
+        // A path's completed strip must be a surface (every prefix of it then is).
+        if !blade.is_straight() {
+            blade.strip(blade.end()).map_err(|e| {
+                err(
+                    "path",
+                    format!("the swept strip is not a valid surface: {e}"),
+                )
+            })?;
+        }
+        Ok(blade)
     }
 
     /// A straight sweep: the edge a–b moves by `travel` between `start` and `end`.
@@ -189,7 +199,14 @@ impl Blade {
                 v,
             }));
         }
-        // Ruled strip: the edges at the keyframes passed and at t.
+        // A prefix of the completed strip, which `new` checked.
+        self.strip(t).ok().flatten().map(Swept::Strip)
+    }
+
+    /// The ruled strip between the edges at the keyframes before t and at t
+    /// (`None` while it has no area).
+    fn strip(&self, t: f64) -> Result<Option<TriangleSurface>, crate::surface::SurfaceError> {
+        let [a0, b0] = self.keyframes[0].1;
         let mut edges: Vec<[Point3<f64>; 2]> = self
             .keyframes
             .iter()
@@ -214,11 +231,9 @@ impl Blade {
             }
         }
         if triangles.is_empty() {
-            return None;
+            return Ok(None);
         }
-        TriangleSurface::new(vertices, triangles, Path::new("blade"))
-            .ok()
-            .map(Swept::Strip)
+        TriangleSurface::new(vertices, triangles, Path::new("blade")).map(Some)
     }
 }
 
