@@ -735,3 +735,47 @@ pub fn run_dynamic(
         carried = Some((mapped, event));
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_straight_sweep_is_the_patch_and_a_path_a_strip_ending_at_the_edge() {
+        let (a, b) = (Point3::new(0.1, -0.2, 0.3), Point3::new(0.4, 0.9, 0.2));
+        let travel = Vector3::new(0.05, 0.02, -0.3);
+        let blade = Blade::straight(0, a, b, travel, 1.0, 3.0).unwrap();
+        assert!(blade.swept(1.0).is_none());
+        let Some(Swept::Patch(p)) = blade.swept(5.0) else {
+            panic!("a straight sweep is a patch")
+        };
+        assert_eq!((p.origin, p.u), (a, b - a));
+        assert!((p.v - travel).norm() <= 1e-15);
+        let Some(Swept::Patch(h)) = blade.swept(2.0) else {
+            panic!("a patch")
+        };
+        assert!((h.v - travel * 0.5).norm() <= 1e-15);
+        let e = blade.edge_at(2.0);
+        assert!((e[0] - (a + travel * 0.5)).norm() <= 1e-15);
+
+        // A path: three keyframes; half-way through the second segment the strip
+        // has the first segment's two triangles and two of the partial one.
+        let k = |x: f64, z: f64| [Point3::new(x, 0.0, z), Point3::new(x, 1.0, z)];
+        let path = Blade::new(
+            3,
+            vec![(0.0, k(0.0, 0.0)), (1.0, k(1.0, 0.0)), (2.0, k(2.0, 1.0))],
+        )
+        .unwrap();
+        let Some(Swept::Strip(s)) = path.swept(1.5) else {
+            panic!("a path sweeps a strip")
+        };
+        assert_eq!(s.n_triangles(), 4);
+        let edge = path.edge_at(1.5);
+        let on_boundary = |p: Point3<f64>| s.boundary().iter().any(|seg| seg.contains(&p));
+        assert!(on_boundary(edge[0]) && on_boundary(edge[1]));
+        // Positive on the side (b − a) × travel points to (here −z), at the distance to the plane z = 0.
+        let n = (edge[1] - edge[0]).cross(&Vector3::new(1.0, 0.0, 0.0));
+        let x = Point3::new(0.5, 0.5, 0.0) + n * 0.1;
+        assert!(s.level_set(&x) > 0.0 && (s.level_set(&x) - 0.1 * n.norm()).abs() < 1e-14);
+    }
+}
