@@ -185,19 +185,24 @@ impl Blade {
             let (t0, [a1, _]) = (self.keyframes[0].0, self.keyframes[1].1);
             let t1 = self.keyframes[1].0;
             let travel = a1 - a0;
-            let v = if t >= t1 {
-                travel
-            } else {
-                travel * ((t - t0) / (t1 - t0))
+            let full = PlanarPatch {
+                origin: a0,
+                u: b0 - a0,
+                v: travel,
             };
+            if t >= t1 {
+                return Some(Swept::Patch(full));
+            }
+            let v = travel * ((t - t0) / (t1 - t0));
             if v.norm() == 0.0 {
                 return None;
             }
-            return Some(Swept::Patch(PlanarPatch {
+            let part = PlanarPatch {
                 origin: a0,
                 u: b0 - a0,
                 v,
-            }));
+            };
+            return Some(Swept::Growing(GrowingPatch { full, part }));
         }
         // A prefix of the completed strip, which `new` checked.
         self.strip(t).ok().flatten().map(Swept::Strip)
@@ -240,7 +245,10 @@ impl Blade {
 /// A blade's swept surface at some time.
 #[derive(Debug, Clone)]
 pub enum Swept {
+    /// A completed straight sweep: the patch origin = a, u = b − a, v = travel.
     Patch(PlanarPatch),
+    /// A straight sweep under way.
+    Growing(GrowingPatch),
     Strip(TriangleSurface),
 }
 
@@ -248,8 +256,39 @@ impl Swept {
     pub fn surface(&self) -> &dyn CutSurface {
         match self {
             Swept::Patch(p) => p,
+            Swept::Growing(g) => g,
             Swept::Strip(s) => s,
         }
+    }
+}
+
+/// A straight sweep under way: the patch swept so far (`part`, v = the
+/// travel so far) with the level set of the completed one (`full`). Both
+/// planes are the same, but u × (c v) normalised differs from u × v in the
+/// last bits: taking Λ from `full` keeps it, and so the sub-tets, bit for
+/// bit the same at every step, so that a step changes the set-up only where
+/// the patch has reached new elements.
+#[derive(Debug, Clone)]
+pub struct GrowingPatch {
+    pub full: PlanarPatch,
+    pub part: PlanarPatch,
+}
+
+impl CutSurface for GrowingPatch {
+    fn level_set(&self, x: &Point3<f64>) -> f64 {
+        self.full.level_set(x)
+    }
+
+    fn overlaps(&self, poly: &[Point3<f64>]) -> bool {
+        self.part.overlaps(poly)
+    }
+
+    fn contains(&self, x: &Point3<f64>, tol: f64) -> bool {
+        self.part.contains(x, tol)
+    }
+
+    fn boundary(&self) -> Vec<[Point3<f64>; 2]> {
+        self.part.boundary()
     }
 }
 
@@ -368,23 +407,63 @@ impl CutSet {
 }
 
 /// Which steps can change the cut set-up, so that the others skip the check.
-/// A straight sweep keeps its plane: an element's classification can change
-/// only while the growing patch passes over it, i.e. when the range of its
-/// vertices' patch coordinate t (along the travel, in the completed patch)
-/// meets the new strip [f_prev, f_now]. Elements the plane does not reach
-/// (all vertices on one side, farther than twice the snapping distance)
-/// never change. A path's strip moves, so every step of its sweep is checked.
+///
+/// A straight sweep keeps its plane, so the snapped level set and each
+/// crossed element's section polygon are fixed; only the patch grows, along
+/// t (the travel coordinate of the completed patch, t = f at fraction f of
+/// the sweep). An element's classification (seed section 5.2 rules in
+/// [`crate::cut`]) can then change only where f passes
+/// - the lowest t of its polygon inside the strip 0 ≤ s ≤ 1 (it becomes cut),
+/// - the highest t of its polygon (it stops containing the front),
+/// - the t of the centroid of a face lying in the plane (a node on the cut
+///   may become enriched);
+///
+/// the enrichment follows the classification. These critical fractions are
+/// computed once; a step is checked only when (f_prev, f_now] holds one (with
+/// a 1e-6 margin). A path's strip moves, so every step of its sweep is checked.
 struct SweepIndex {
     straight: Vec<StraightSweep>,
     /// Sweep spans of the other blades.
     paths: Vec<(f64, f64)>,
 }
 
-/// A straight blade's span and the (t_min, t_max) of the elements its plane reaches, sorted.
+/// A straight blade's span and the sorted fractions at which its set-up may change.
 struct StraightSweep {
     start: f64,
     end: f64,
-    ranges: Vec<(f64, f64)>,
+    critical: Vec<f64>,
+}
+
+/// Clips the convex polygon `pts` (s, t) to lo ≤ s ≤ hi; returns its t range.
+fn clipped_t_range(pts: &[(f64, f64)], lo: f64, hi: f64) -> Option<(f64, f64)> {
+    let mut poly = pts.to_vec();
+    for (bound, keep_above) in [(lo, true), (hi, false)] {
+        let inside = |p: &(f64, f64)| {
+            if keep_above {
+                p.0 >= bound
+            } else {
+                p.0 <= bound
+            }
+        };
+        let mut out = Vec::with_capacity(poly.len() + 2);
+        for k in 0..poly.len() {
+            let (a, b) = (poly[k], poly[(k + 1) % poly.len()]);
+            if inside(&a) {
+                out.push(a);
+            }
+            if inside(&a) != inside(&b) && a.0 != b.0 {
+                let w = (bound - a.0) / (b.0 - a.0);
+                out.push((bound, a.1 + w * (b.1 - a.1)));
+            }
+        }
+        poly = out;
+        if poly.is_empty() {
+            return None;
+        }
+    }
+    let tmin = poly.iter().map(|p| p.1).fold(f64::INFINITY, f64::min);
+    let tmax = poly.iter().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max);
+    Some((tmin, tmax))
 }
 
 impl SweepIndex {
@@ -403,43 +482,51 @@ impl SweepIndex {
                 paths.push((b.start(), b.end()));
                 continue;
             };
+            // The level set snapped as the set-up does it.
             let phi: Vec<f64> = mesh
                 .nodes
                 .iter()
                 .zip(&h)
                 .map(|(x, hi)| {
                     let f = p.level_set(x);
-                    if f.abs() < 2.0 * cuts.snap * hi {
+                    if f.abs() < cuts.snap * hi {
                         0.0
                     } else {
                         f
                     }
                 })
                 .collect();
-            let mut ranges = Vec::new();
+            let mut critical = Vec::new();
             for e in 0..mesh.n_elements() {
                 let v = mesh.vertices(e);
-                let lo = v.iter().map(|&i| phi[i]).fold(f64::INFINITY, f64::min);
-                let hi = v.iter().map(|&i| phi[i]).fold(f64::NEG_INFINITY, f64::max);
-                if lo > 0.0 || hi < 0.0 {
-                    continue;
+                let f = v.map(|i| phi[i]);
+                let crossed = f.iter().any(|&x| x > 0.0) && f.iter().any(|&x| x < 0.0);
+                if crossed {
+                    let poly = crate::cut::section_polygon(&mesh.vertex_points(e), &f);
+                    let st: Vec<(f64, f64)> = poly.iter().map(|x| p.coordinates(x)).collect();
+                    if let Some((onset, _)) = clipped_t_range(&st, 0.0, 1.0) {
+                        critical.push(onset);
+                        critical.push(st.iter().map(|c| c.1).fold(f64::NEG_INFINITY, f64::max));
+                    }
                 }
-                let st: Vec<(f64, f64)> =
-                    v.iter().map(|&i| p.coordinates(&mesh.nodes[i])).collect();
-                let smin = st.iter().map(|c| c.0).fold(f64::INFINITY, f64::min);
-                let smax = st.iter().map(|c| c.0).fold(f64::NEG_INFINITY, f64::max);
-                if smax < -1e-6 || smin > 1.0 + 1e-6 {
-                    continue;
+                for face in crate::mesh::TET_FACES {
+                    let tri = face.map(|k| v[k]);
+                    if tri.iter().all(|&j| phi[j] == 0.0) {
+                        let c = Point3::from(
+                            tri.iter()
+                                .fold(Vector3::zeros(), |s, &j| s + mesh.nodes[j].coords)
+                                / 3.0,
+                        );
+                        critical.push(p.coordinates(&c).1);
+                    }
                 }
-                let tmin = st.iter().map(|c| c.1).fold(f64::INFINITY, f64::min);
-                let tmax = st.iter().map(|c| c.1).fold(f64::NEG_INFINITY, f64::max);
-                ranges.push((tmin, tmax));
             }
-            ranges.sort_by(|a, b| a.0.total_cmp(&b.0));
+            critical.retain(|c| c.is_finite());
+            critical.sort_by(f64::total_cmp);
             straight.push(StraightSweep {
                 start: b.start(),
                 end: b.end(),
-                ranges,
+                critical,
             });
         }
         SweepIndex { straight, paths }
@@ -458,10 +545,8 @@ impl SweepIndex {
             }
             let frac = |t: f64| ((t - sw.start) / (sw.end - sw.start)).clamp(0.0, 1.0);
             let (f0, f1) = (frac(t0) - margin, frac(t1) + margin);
-            sw.ranges
-                .iter()
-                .take_while(|r| r.0 <= f1)
-                .any(|r| r.1 >= f0)
+            let k = sw.critical.partition_point(|&c| c < f0);
+            k < sw.critical.len() && sw.critical[k] <= f1
         })
     }
 }
@@ -751,10 +836,12 @@ mod tests {
         };
         assert_eq!((p.origin, p.u), (a, b - a));
         assert!((p.v - travel).norm() <= 1e-15);
-        let Some(Swept::Patch(h)) = blade.swept(2.0) else {
-            panic!("a patch")
+        let Some(Swept::Growing(h)) = blade.swept(2.0) else {
+            panic!("a growing patch")
         };
-        assert!((h.v - travel * 0.5).norm() <= 1e-15);
+        assert!((h.part.v - travel * 0.5).norm() <= 1e-15);
+        let x = Point3::new(0.3, 0.1, -0.2);
+        assert_eq!(h.level_set(&x), p.level_set(&x));
         let e = blade.edge_at(2.0);
         assert!((e[0] - (a + travel * 0.5)).norm() <= 1e-15);
 

@@ -122,16 +122,7 @@ fn cut_events_keep_both_energies_and_refactorise_only_there() {
         }
         // The steps the sweep index let pass could not have changed the set-up:
         // the events are those of a full check after every step.
-        let mut full = Vec::new();
-        let mut last = cuts.setup_at(&mesh, 0.0).unwrap();
-        for k in 1..=opts.steps {
-            let t = k as f64 * opts.dt;
-            let s = cuts.setup_at(&mesh, t).unwrap();
-            if !xfem_cut::blade::same_setup(last.as_ref(), s.as_ref()) {
-                full.push(k);
-            }
-            last = s;
-        }
+        let full = full_check_events(&cuts, &mesh, &opts);
         let got: Vec<usize> = sw.events.iter().map(|e| e.step).collect();
         assert_eq!(got, full, "events vs a full check after every step");
         assert!(sw.checks < opts.steps);
@@ -189,6 +180,26 @@ fn bad_blades_are_errors_naming_the_key() {
     assert!(e.contains("cut[1]") && e.contains("meets cut[0]"), "{e}");
 }
 
+/// The steps after which a full set-up (every step, no sweep index) changes.
+fn full_check_events(
+    cuts: &CutSet,
+    mesh: &xfem_cut::mesh::TetMesh,
+    opts: &DynamicOptions,
+) -> Vec<usize> {
+    let mut full = Vec::new();
+    let mut last = cuts.setup_at(mesh, 0.0).unwrap();
+    let mut t = 0.0;
+    for k in 1..=opts.steps {
+        t += opts.dt;
+        let s = cuts.setup_at(mesh, t).unwrap();
+        if !xfem_cut::blade::same_setup(last.as_ref(), s.as_ref()) {
+            full.push(k);
+        }
+        last = s;
+    }
+    full
+}
+
 /// Jump of the displacement across the cut at x: + side minus − side.
 fn opening(m: &xfem_cut::model::Model, d: &[f64], x: Point3<f64>) -> f64 {
     let loc = Locator::new(&m.mesh);
@@ -244,6 +255,12 @@ fn cut_progressive_settles_to_the_static_full_cut() {
     );
     let sw = &run.sweep;
     println!("cut_progressive: {sw}");
+    let got: Vec<usize> = sw.events.iter().map(|e| e.step).collect();
+    assert_eq!(
+        got,
+        full_check_events(&cuts, &mesh, &options),
+        "events vs a full check after every step"
+    );
     assert!(!sw.events.is_empty());
     for e in &sw.events {
         let dk =
@@ -546,6 +563,12 @@ fn free_slice_made_by_two_blades_falls_with_g_after_the_second() {
     })
     .unwrap();
     println!("free_slice by two blades: {}", run.sweep);
+    let got: Vec<usize> = run.sweep.events.iter().map(|e| e.step).collect();
+    assert_eq!(
+        got,
+        full_check_events(&cuts, &mesh, &opts),
+        "events vs a full check after every step"
+    );
     let freed_at = before_second.unwrap();
     assert!(
         (0.1..=0.2 + opts.dt).contains(&freed_at),
