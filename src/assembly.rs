@@ -229,6 +229,18 @@ pub fn tangent_product(
         kernel.add_forces(&sigma, |a, fa| add_nodal(y, shapes, a, &fa));
     });
 }
+/// The shape function (node, or enriched node) of each free equation: the
+/// blocks of a node-wise fill-reducing ordering (three equations a node).
+pub fn equation_shapes(model: &Model) -> Vec<usize> {
+    let mut shape = vec![0; model.n_free];
+    for (dof, &eq) in model.equation.iter().enumerate() {
+        if eq != NONE {
+            shape[eq as usize] = dof / 3;
+        }
+    }
+    shape
+}
+
 /// Copies the free part of a full-DOF vector into `out` (by equation number).
 pub fn gather_free(model: &Model, full: &[f64], out: &mut [f64]) {
     for (dof, &eq) in model.equation.iter().enumerate() {

@@ -335,6 +335,13 @@ impl<'m> Newmark<'m> {
         self.chol
     }
 
+    /// Ends the integration, giving back the state and the factorisation
+    /// (a progressive cut maps the state onto its new model and keeps the
+    /// symbolic analysis where the pattern did not change).
+    pub fn into_parts(self) -> (State, Cholesky) {
+        (self.state, self.chol)
+    }
+
     /// Sets the acceleration consistent with the current state: M a = f_ext − f_int − D v
     /// on the free DOFs (the lumped mass is diagonal; a consistent mass is factorised once for it).
     pub fn initialise_acceleration(&mut self) -> Result<(), DynamicError> {

@@ -3,7 +3,8 @@
 use crate::dynamics::{DynamicError, Energies, Newmark};
 use crate::locate::Locator;
 use crate::model::Model;
-use crate::scene::{Analysis, Plan, Scene, SceneError};
+use crate::plan::Plan;
+use crate::scene::{Analysis, Scene, SceneError};
 use crate::solve::{Cholesky, SolveError};
 use crate::statics::{solve_static, StaticError};
 use nalgebra::{Point3, Vector3};

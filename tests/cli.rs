@@ -131,3 +131,211 @@ fn shipped_uncut_cases_run() {
         assert!(dir.path().join("probes.csv").exists());
     }
 }
+
+/// `GOOD` with `[[cut]]` `cut` inserted before `[gravity]`.
+fn with_cut(cut: &str) -> String {
+    GOOD.replace("[gravity]", &format!("[[cut]]\n{cut}\n[gravity]"))
+}
+
+const PATCH: &str = "origin = [0.0, 0.0, 0.1]\nu = [0.015, 0.0, 0.0]\nv = [0.0, 0.06, 0.0]";
+
+/// Each `(text, key, words)`: refused with one line naming the file, the key and the words.
+fn assert_refused(cases: &[(String, &str, &str)]) {
+    for (text, key, words) in cases {
+        let (ok, err, _dir) = run_case(text);
+        assert!(!ok, "accepted bad input (expected an error about {key})");
+        assert_eq!(err.trim_end().lines().count(), 1, "not one line: {err}");
+        assert!(
+            err.contains(&format!("`{key}`")),
+            "error does not name {key}: {err}"
+        );
+        assert!(err.contains(words), "error does not say {words:?}: {err}");
+        assert!(
+            err.contains("case.toml"),
+            "error does not name the file: {err}"
+        );
+    }
+}
+
+#[test]
+fn scenes_too_large_for_memory_are_refused_before_allocating() {
+    // Both aborted or met the OOM killer before the memory estimate.
+    assert_refused(&[
+        (
+            GOOD.replace("levels = [[1, 2, 4]]", "levels = [[1000, 1000, 1000]]"),
+            "body.levels",
+            "of memory",
+        ),
+        (
+            GOOD.replace(
+                "type = \"static\"",
+                "type = \"dynamic\"\ndt = 0.01\nsteps = 100000000000000",
+            ),
+            "analysis.steps",
+            "of memory",
+        ),
+        (
+            GOOD.replace(
+                "type = \"static\"",
+                "type = \"dynamic\"\ndt = 0.01\nsteps = 100000000\noutput_every = 1",
+            ),
+            "analysis.steps",
+            "of memory",
+        ),
+    ]);
+}
+
+#[test]
+fn cut_keys_are_checked_per_cut() {
+    let blade = "blade = [[0.0, -0.01, 0.1], [0.0, 0.07, 0.1]]";
+    assert_refused(&[
+        (with_cut(&format!("{PATCH}\nfront = \"sideways\"")), "cut[0].front", "sideways"),
+        (with_cut(&format!("{PATCH}\ntip_radius = -1.0")), "cut[0].tip_radius", "positive"),
+        (with_cut(&format!("{PATCH}\ntip_radius = nan")), "cut[0].tip_radius", "finite"),
+        (with_cut(&format!("{PATCH}\nfront = \"extend\"\ntip_radius = 0.01")), "cut[0].tip_radius", "only with front"),
+        (with_cut(&format!("{PATCH}\nsurface = \"a.stl\"")), "cut[0]", "exactly one"),
+        (with_cut(&format!("{PATCH}\n{blade}")), "cut[0]", "exactly one"),
+        (with_cut("u = [0.015, 0.0, 0.0]\nv = [0.0, 0.06, 0.0]"), "cut[0].origin", "missing"),
+        (with_cut("snap = 0.01"), "cut[0].origin", "missing"),
+        (with_cut("travel = [0.01, 0.0, 0.0]"), "cut[0].blade", "need a blade"),
+        (with_cut(&format!("{PATCH}\nstart = 0.1")), "cut[0].start", "only with a blade"),
+        (with_cut("surface = \"no_such.stl\""), "cut[0].surface", "no such file"),
+        (with_cut("surface = \"incision.obj\""), "cut[0].surface", ".stl or .msh"),
+        (with_cut(blade), "cut[0].travel", "missing"),
+        (with_cut(&format!("{blade}\ntravel = [0.015, 0.0, 0.0]\nend = 0.5")), "cut[0].start", "missing"),
+        (with_cut(&format!("{blade}\ntravel = [0.015, 0.0, 0.0]\nstart = 0.5\nend = 0.5")), "cut[0].end", "later than start"),
+        (with_cut(&format!("{blade}\ntravel = [0.015, 0.0, 0.0]\nstart = 0.5\nend = 0.1")), "cut[0].end", "later than start"),
+        (with_cut(&format!("{blade}\ntravel = [0.015, 0.0, inf]\nstart = 0.0\nend = 0.1")), "cut[0].travel", "finite"),
+        (with_cut(&format!("{blade}\ntravel = [0.0, 0.08, 0.0]\nstart = 0.0\nend = 0.1")), "cut[0].travel", "sweeps no area"),
+        (with_cut("blade = [[0.0, 0.0, 0.1], [0.0, 0.0, 0.1]]\ntravel = [0.015, 0.0, 0.0]\nstart = 0.0\nend = 0.1"), "cut[0].blade", "zero length"),
+        (with_cut(&format!("{blade}\ntravel = [0.015, 0.0, 0.0]\nstart = 0.0\nend = 0.1\npath = [[[0.0, -0.01, 0.1], [0.0, 0.07, 0.1]]]\ntimes = [0.0]")), "cut[0].path", "not both"),
+        (with_cut(&format!("{blade}\npath = [[[0.0, -0.01, 0.1], [0.0, 0.07, 0.1]], [[0.01, -0.01, 0.1], [0.01, 0.07, 0.1]]]")), "cut[0].times", "missing"),
+        (with_cut(&format!("{blade}\npath = [[[0.0, -0.01, 0.1], [0.0, 0.07, 0.1]], [[0.01, -0.01, 0.1], [0.01, 0.07, 0.1]]]\ntimes = [0.1]")), "cut[0].times", "has 1 entries but path has 2"),
+        (with_cut(&format!("{blade}\npath = [[[0.0, -0.01, 0.1], [0.0, 0.07, 0.1]], [[0.01, -0.01, 0.1], [0.01, 0.07, 0.1]]]\ntimes = [0.3, 0.2]")), "cut[0].times", "must increase"),
+        (with_cut(&format!("{blade}\npath = [[[0.0, -0.01, 0.1], [0.0, 0.07, 0.1]], [[0.01, -0.01, 0.1], [0.01, 0.07, 0.1]]]\ntimes = [0.1, nan]")), "cut[0].times", "finite"),
+        (with_cut(&format!("{blade}\npath = [[[0.0, -0.01, 0.1], [0.0, 0.07, 0.1]], [[0.01, -0.01, 0.1], [0.01, 0.07, 0.1]]]\ntimes = [0.1, 0.2]\nstart = 0.1")), "cut[0].start", "only with travel"),
+        (with_cut(&format!("{blade}\npath = [[[0.0, 0.0, 0.1], [0.0, 0.07, 0.1]], [[0.01, -0.01, 0.1], [0.01, 0.07, 0.1]]]\ntimes = [0.1, 0.2]")), "cut[0].path", "first keyframe"),
+    ]);
+}
+
+#[test]
+fn cut_kinds_this_build_cannot_solve_are_refused_clearly() {
+    let dir = tempfile::tempdir().unwrap();
+    let blade = "blade = [[0.0, -0.01, 0.1], [0.0, 0.07, 0.1]]";
+    let far = "origin = [0.0, 0.0, 0.1875]\nu = [0.015, 0.0, 0.0]\nv = [0.0, 0.06, 0.0]";
+    let stl = dir.path().join("incision.stl");
+    std::fs::write(&stl, "solid s\nendsolid s\n").unwrap();
+    assert_refused(&[
+        (
+            with_cut(&format!("surface = \"{}\"", stl.display())),
+            "cut[0].surface",
+            "not supported in this build",
+        ),
+        (
+            with_cut(&format!(
+                "{blade}\ntravel = [0.015, 0.0, 0.0]\nstart = 0.0\nend = 0.1"
+            )),
+            "cut[0].blade",
+            "not supported in this build",
+        ),
+        (
+            with_cut(&format!("{PATCH}\nfront = \"tip\"")),
+            "cut[0].front",
+            "not supported in this build",
+        ),
+        (
+            with_cut(&format!("{PATCH}\ntip_radius = 0.01")),
+            "cut[0].tip_radius",
+            "not supported in this build",
+        ),
+        // Per-cut snap: this build's cut set-up takes one snap for all cuts (it took the last cut's for all).
+        (
+            with_cut(&format!(
+                "{PATCH}\nsnap = 0.01\n[[cut]]\n{far}\nsnap = 0.02"
+            )),
+            "cut[1].snap",
+            "not supported in this build",
+        ),
+    ]);
+    // front = "extend" is today's behaviour; two cuts with the same snap run.
+    let text = with_cut(&format!(
+        "{PATCH}\nfront = \"extend\"\nsnap = 0.01\n[[cut]]\n{far}\nsnap = 0.01"
+    ))
+    .replace("levels = [[1, 2, 4]]", "levels = [[1, 2, 8]]");
+    let (ok, err, _dir) = run_case(&text);
+    assert!(ok, "{err}");
+}
+
+#[test]
+fn the_plan_shows_the_options_the_run_uses() {
+    let dynamic = |extra: &str| {
+        GOOD.replace(
+            "type = \"static\"",
+            &format!(
+                "type = \"dynamic\"\nformulation = \"corotational\"\ndt = 0.01\nsteps = 2\n{extra}"
+            ),
+        )
+    };
+    for (text, has, lacks) in [
+        (
+            dynamic("mass = \"consistent\""),
+            "[run ] mass (consistent",
+            "lumped",
+        ),
+        (dynamic(""), "[run ] mass (lumped", "consistent"),
+        (
+            dynamic("linear_solver = \"pcg\""),
+            "[run ] numeric factorisation when PCG needs more than 25 iterations",
+            "every iteration",
+        ),
+        (
+            dynamic(""),
+            "[run ] numeric factorisation every iteration",
+            "PCG",
+        ),
+        (
+            GOOD.to_string(),
+            "[skip] numeric factorisation every iteration (constant matrix",
+            "[run ] mass",
+        ),
+    ] {
+        let dir = tempfile::tempdir().unwrap();
+        let case = dir.path().join("case.toml");
+        std::fs::write(&case, &text).unwrap();
+        let out = Command::new(bin())
+            .arg("run")
+            .arg(&case)
+            .arg("--out")
+            .arg(dir.path().join("out"))
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let plan: String = stdout
+            .lines()
+            .filter(|l| l.starts_with("  ["))
+            .collect::<Vec<_>>()
+            .join("\n");
+        assert!(plan.contains(has), "plan lacks {has:?}:\n{plan}");
+        assert!(!plan.contains(lacks), "plan has {lacks:?}:\n{plan}");
+    }
+}
+
+#[test]
+fn a_missing_case_file_names_the_os_error() {
+    let out = Command::new(bin())
+        .args(["run", "/no/such/case.toml"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("/no/such/case.toml: cannot read: No such file"),
+        "{err}"
+    );
+}

@@ -587,7 +587,10 @@ fn two_cuts_free_the_slice_between_them() {
 #[test]
 fn cuts_closer_than_an_element_are_refused() {
     let mut scene = twice_cut_bar("[analysis]\ntype = \"static\"\n");
-    scene.cuts[1].origin.z = 0.6;
+    let xfem_cut::scene::CutGeometry::Patch(p) = &mut scene.cuts[1].geometry else {
+        panic!("a planar cut");
+    };
+    p.origin.z = 0.6;
     let err = solve_scene(&scene, 0, None, false)
         .err()
         .expect("must be refused")

@@ -201,11 +201,7 @@ pub fn converge_case(
             .map(|(e, l)| field.at(e, &l))
     };
     // Points on the crack (inside the body), the side offset and the reference jumps there.
-    let patch = base.cuts.first().map(|c| PlanarPatch {
-        origin: c.origin,
-        u: c.u,
-        v: c.v,
-    });
+    let patch: Option<PlanarPatch> = base.patches().next().cloned();
     let offset = patch
         .as_ref()
         .map_or(Vector3::zeros(), |p| p.normal() * SIDE_OFFSET);

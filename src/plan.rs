@@ -1,0 +1,181 @@
+//! What a run does, and what it skips and why: built from the options the run
+//! actually uses (mass kind, linear solver, formulation, analysis).
+
+use crate::dynamics::{LinearSolver, MassKind};
+use crate::model::{Formulation, Model};
+use crate::scene::{Analysis, BodyGeometry, Scene};
+use std::fmt;
+
+/// One stage of a run: its name, whether it runs, and why.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Stage {
+    pub name: String,
+    pub run: bool,
+    pub why: String,
+}
+
+/// What a run does, and what it skips and why.
+#[derive(Debug, Clone)]
+pub struct Plan {
+    pub stages: Vec<Stage>,
+    pub elements: usize,
+    pub nodes: usize,
+    pub dofs: usize,
+    pub enriched: usize,
+    pub free: usize,
+    /// Seconds: selections, cut set-up, element data + pattern.
+    pub times: [f64; 3],
+}
+
+/// Frames a dynamic run keeps for output (the initial state, every
+/// `output_every` steps, and the last); 0 for a static run.
+pub fn frames_kept(analysis: &Analysis) -> usize {
+    match analysis {
+        Analysis::Static(_) => 0,
+        Analysis::Dynamic {
+            options,
+            output_every,
+        } => {
+            let every = options.steps / output_every;
+            1 + every + usize::from(options.steps % output_every != 0)
+        }
+    }
+}
+
+impl Plan {
+    pub fn new(scene: &Scene, model: &Model, elements: usize, times: [f64; 3]) -> Plan {
+        let corot = scene.formulation == Formulation::Corotational;
+        let cut = !scene.cuts.is_empty();
+        let dynamic = match &scene.analysis {
+            Analysis::Static(_) => None,
+            Analysis::Dynamic { options, .. } => Some(options),
+        };
+        let mut s: Vec<Stage> = Vec::new();
+        let mut add = |name: &str, run: bool, why: &str| {
+            s.push(Stage {
+                name: name.to_string(),
+                run,
+                why: why.to_string(),
+            })
+        };
+        add(
+            "mesh",
+            true,
+            &format!(
+                "{} {}",
+                model.mesh.kind.name(),
+                match scene.geometry {
+                    BodyGeometry::Box { .. } => "structured box",
+                    BodyGeometry::Meshes(_) => "gmsh file",
+                }
+            ),
+        );
+        add(
+            "cut set-up (level set, classification, sub-tets, enrichment)",
+            cut,
+            if cut {
+                "the scene has [[cut]]"
+            } else {
+                "no cut in the scene"
+            },
+        );
+        add("element data (gradients, integration groups)", true, "once");
+        add("sparsity pattern + symbolic factorisation", true, "once");
+        match dynamic.map(|o| o.mass) {
+            Some(MassKind::Lumped) => add("mass (lumped, eq. 81-82)", true, "dynamic scene"),
+            Some(MassKind::Consistent) => add(
+                "mass (consistent, on the stiffness pattern)",
+                true,
+                "dynamic scene, mass = \"consistent\"",
+            ),
+            None => add("mass", false, "static scene: no mass"),
+        }
+        add(
+            "rotations (polar decomposition per group)",
+            corot,
+            if corot {
+                "corotational"
+            } else {
+                "linear scene: R = I"
+            },
+        );
+        match (corot, dynamic.map(|o| o.linear_solver)) {
+            (false, _) => add(
+                "numeric factorisation every iteration",
+                false,
+                "constant matrix: factorised once",
+            ),
+            (true, Some(LinearSolver::Pcg { max_cg, .. })) => add(
+                &format!("numeric factorisation when PCG needs more than {max_cg} iterations"),
+                true,
+                "linear_solver = \"pcg\": CG preconditioned by the last factorisation",
+            ),
+            (true, Some(LinearSolver::Direct)) => add(
+                "numeric factorisation every iteration",
+                true,
+                if dynamic.is_some_and(|o| o.exact_tangent) {
+                    "exact corotational tangent changes"
+                } else {
+                    "tangent R K R^T changes"
+                },
+            ),
+            (true, None) => add(
+                "numeric factorisation every iteration",
+                true,
+                "exact corotational tangent (rotation derivative included) changes",
+            ),
+        }
+        add(
+            "Newton load steps",
+            corot && dynamic.is_none(),
+            if corot && dynamic.is_none() {
+                "corotational static"
+            } else {
+                "not needed"
+            },
+        );
+        add(
+            "Newmark time stepping",
+            dynamic.is_some(),
+            if dynamic.is_some() {
+                "dynamic scene"
+            } else {
+                "static scene"
+            },
+        );
+        Plan {
+            stages: s,
+            elements,
+            nodes: model.mesh.n_nodes(),
+            dofs: model.n_dofs(),
+            enriched: model.n_enriched(),
+            free: model.n_free,
+            times,
+        }
+    }
+
+    /// The stage named `name`, if the plan has it.
+    pub fn stage(&self, name: &str) -> Option<&Stage> {
+        self.stages.iter().find(|s| s.name == name)
+    }
+}
+
+impl fmt::Display for Plan {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(f, "plan:")?;
+        for st in &self.stages {
+            writeln!(
+                f,
+                "  [{}] {} ({})",
+                if st.run { "run " } else { "skip" },
+                st.name,
+                st.why
+            )?;
+        }
+        write!(
+            f,
+            "size: {} elements, {} nodes, {} DOFs ({} enriched nodes), {} free DOFs",
+            self.elements, self.nodes, self.dofs, self.enriched, self.free
+        )
+    }
+}

@@ -1,0 +1,168 @@
+//! Scene → [`Model`]: the box selections of fixes and tractions on the mesh,
+//! the cut set-up, the model's precompute, and the [`Plan`] of the run.
+
+use crate::cut::{CutSetup, CutSurface, PlanarPatch};
+use crate::mesh::TetMesh;
+use crate::model::{Model, ModelInput, Traction};
+use crate::plan::Plan;
+use crate::scene::{CutGeometry, FrontMode, Scene, SceneError};
+use nalgebra::{Point3, Vector3};
+use std::time::Instant;
+
+impl Scene {
+    /// Builds the model of `mesh` and the plan saying what runs. Refuses a
+    /// mesh whose model would not fit in memory, a fix or traction that
+    /// selects nothing, and a static scene with a part that floats free.
+    pub fn build(&self, mesh: TetMesh) -> Result<(Model, Plan), SceneError> {
+        self.check_mesh_memory(&mesh)?;
+        let t0 = Instant::now();
+        let file = self.file();
+        let (lo, hi) = mesh.bounding_box();
+        let tol = 1e-9 * (hi - lo).norm();
+        let inside = |p: &Point3<f64>, min: &[f64; 3], max: &[f64; 3]| {
+            (0..3).all(|k| p[k] >= min[k] - tol && p[k] <= max[k] + tol)
+        };
+
+        // Dirichlet nodes.
+        let mut fixed_nodes: Vec<[Option<f64>; 3]> = vec![[None; 3]; mesh.n_nodes()];
+        for (i, fx) in self.fixes.iter().enumerate() {
+            let mut count = 0;
+            for (n, p) in mesh.nodes.iter().enumerate() {
+                if inside(p, &fx.min, &fx.max) {
+                    count += 1;
+                    for c in 0..3 {
+                        if fx.components[c] {
+                            fixed_nodes[n][c] = Some(fx.displacement[c]);
+                        }
+                    }
+                }
+            }
+            if count == 0 {
+                return Err(SceneError::Key {
+                    file,
+                    key: format!("fix[{i}]"),
+                    message: format!("selects no node (box min {:?}, max {:?})", fx.min, fx.max),
+                });
+            }
+        }
+        let fixed: Vec<(usize, [Option<f64>; 3])> = fixed_nodes
+            .into_iter()
+            .enumerate()
+            .filter(|(_, c)| c.iter().any(Option::is_some))
+            .collect();
+
+        // Tractions.
+        let boundary = if self.tractions.is_empty() {
+            Vec::new()
+        } else {
+            mesh.boundary_faces()
+        };
+        let mut tractions = Vec::new();
+        for (i, t) in self.tractions.iter().enumerate() {
+            let faces: Vec<_> = boundary
+                .iter()
+                .filter(|(tri, _)| tri.iter().all(|&v| inside(&mesh.nodes[v], &t.min, &t.max)))
+                .copied()
+                .collect();
+            if faces.is_empty() {
+                return Err(SceneError::Key {
+                    file,
+                    key: format!("traction[{i}]"),
+                    message: "selects no boundary face".into(),
+                });
+            }
+            tractions.push(Traction {
+                faces,
+                value: Vector3::from(t.traction),
+            });
+        }
+        let t_setup = t0.elapsed().as_secs_f64();
+
+        let t1 = Instant::now();
+        let cut = self.setup_cuts(&mesh)?;
+        let t_cut = t1.elapsed().as_secs_f64();
+
+        let t2 = Instant::now();
+        let need_mass = self.is_dynamic();
+        let n_elements = mesh.n_elements();
+        let model = Model::build(ModelInput {
+            mesh,
+            material: self.material,
+            formulation: self.formulation,
+            cut,
+            fixed,
+            gravity: self.gravity,
+            body_force: None,
+            tractions: &tractions,
+            need_mass,
+        })
+        .map_err(|source| SceneError::Model {
+            file: file.clone(),
+            source,
+        })?;
+        let t_model = t2.elapsed().as_secs_f64();
+        if let Some(part) = model.free_parts().into_iter().next() {
+            if !self.is_dynamic() {
+                return Err(SceneError::FloatingPart { file, part });
+            }
+        }
+        let plan = Plan::new(self, &model, n_elements, [t_setup, t_cut, t_model]);
+        Ok((model, plan))
+    }
+
+    /// The cut set-up of every `[[cut]]` on `mesh` (`None` without cuts).
+    ///
+    /// The one place that maps the scene's cuts to the cut module: this build
+    /// sets up planar patches with the front extended to element faces, one
+    /// `snap` for all cuts; a surface, a blade, `front = "tip"`,
+    /// `tip_radius` and differing snaps are refused here as not supported.
+    fn setup_cuts(&self, mesh: &TetMesh) -> Result<Option<CutSetup>, SceneError> {
+        if self.cuts.is_empty() {
+            return Ok(None);
+        }
+        let unsupported = |i: usize, key: &str, what: &str| SceneError::Unsupported {
+            file: self.file(),
+            key: format!("cut[{i}].{key}"),
+            what: what.to_string(),
+        };
+        let mut patches: Vec<PlanarPatch> = Vec::with_capacity(self.cuts.len());
+        for (i, c) in self.cuts.iter().enumerate() {
+            match &c.geometry {
+                CutGeometry::Patch(p) => patches.push(p.clone()),
+                CutGeometry::Surface(_) => {
+                    return Err(unsupported(i, "surface", "a cut surface from a file"))
+                }
+                CutGeometry::Blade { .. } => {
+                    return Err(unsupported(
+                        i,
+                        "blade",
+                        "a blade cutting while the scene runs",
+                    ))
+                }
+            }
+            if c.front == Some(FrontMode::Tip) {
+                return Err(unsupported(i, "front", "front = \"tip\" (tip enrichment)"));
+            }
+            if c.tip_radius.is_some() {
+                return Err(unsupported(i, "tip_radius", "tip enrichment"));
+            }
+            if c.snap != self.cuts[0].snap {
+                return Err(unsupported(
+                    i,
+                    "snap",
+                    &format!(
+                        "a snap ({}) other than cut[0]'s ({})",
+                        c.snap, self.cuts[0].snap
+                    ),
+                ));
+            }
+        }
+        let surfaces: Vec<&dyn CutSurface> = patches.iter().map(|p| p as &dyn CutSurface).collect();
+        crate::cut::setup_cut(mesh, &surfaces, self.cuts[0].snap)
+            .map(Some)
+            .map_err(|source| SceneError::Cut {
+                file: self.file(),
+                source,
+            })
+    }
+}
