@@ -44,6 +44,12 @@ pub enum BladeError {
         other: usize,
         element: usize,
     },
+    #[error("cut[{index}]: key `surface`: {source}")]
+    Surface {
+        index: usize,
+        #[source]
+        source: crate::surface::SurfaceError,
+    },
     #[error(transparent)]
     Cut(#[from] CutError),
     #[error(transparent)]
@@ -305,6 +311,30 @@ pub struct CutSet {
 }
 
 impl CutSet {
+    /// The cuts of a scene: its patches, its surfaces read from their files,
+    /// its blades; one snap for all (cut[0]'s), as the scene's set-up uses.
+    pub fn from_scene(scene: &crate::scene::Scene) -> Result<CutSet, BladeError> {
+        use crate::scene::CutGeometry;
+        let mut items = Vec::with_capacity(scene.cuts.len());
+        for (index, c) in scene.cuts.iter().enumerate() {
+            items.push(match &c.geometry {
+                CutGeometry::Patch(p) => CutItem::Surface(Box::new(p.clone())),
+                CutGeometry::Surface(path) => CutItem::Surface(Box::new(
+                    TriangleSurface::read(path)
+                        .map_err(|source| BladeError::Surface { index, source })?,
+                )),
+                CutGeometry::Blade { keyframes } => {
+                    CutItem::Blade(Blade::new(index, keyframes.clone())?)
+                }
+            });
+        }
+        let snap = scene
+            .cuts
+            .first()
+            .map_or(crate::cut::DEFAULT_SNAP, |c| c.snap);
+        Ok(CutSet { items, snap })
+    }
+
     pub fn blades(&self) -> impl Iterator<Item = &Blade> {
         self.items.iter().filter_map(|c| match c {
             CutItem::Blade(b) => Some(b),

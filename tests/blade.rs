@@ -209,8 +209,7 @@ fn opening(m: &xfem_cut::model::Model, d: &[f64], x: Point3<f64>) -> f64 {
 
 #[test]
 fn cut_progressive_settles_to_the_static_full_cut() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("cases/progressive/cut_progressive.toml");
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/cut_progressive.toml");
     let (scene, cuts) = case::load(&path);
     let mesh = scene.mesh(0).unwrap();
     let Analysis::Dynamic { options, .. } = scene.analysis else {
