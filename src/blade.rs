@@ -18,7 +18,7 @@
 //! - A static scene takes the completed sweep ([`CutSet::completed`]).
 
 use crate::assembly::Rotations;
-use crate::cut::{setup_cut, CutError, CutSetup, CutSurface, ElementCut, PlanarPatch};
+use crate::cut::{setup_cut, CutError, CutInput, CutSetup, CutSurface, ElementCut, PlanarPatch};
 use crate::dynamics::{DynamicError, DynamicOptions, Energies, Newmark, State};
 use crate::mesh::TetMesh;
 use crate::model::{Model, ModelError};
@@ -266,6 +266,14 @@ impl Swept {
             Swept::Strip(s) => s,
         }
     }
+
+    /// The swept surface, owned.
+    pub fn into_surface(self) -> Box<dyn CutSurface> {
+        match self {
+            Swept::Patch(p) => Box::new(p),
+            Swept::Strip(s) => Box::new(s),
+        }
+    }
 }
 
 /// A straight sweep under way: the patch swept so far (`part`, v = the
@@ -400,8 +408,11 @@ impl CutSet {
             if parts.is_empty() {
                 return Ok(None);
             }
-            let surfaces: Vec<&dyn CutSurface> = parts.iter().map(|p| p.1).collect();
-            match setup_cut(mesh, &surfaces, self.snap) {
+            let inputs: Vec<CutInput<'_>> = parts
+                .iter()
+                .map(|p| CutInput::extend(p.1, self.snap))
+                .collect();
+            match setup_cut(mesh, &inputs) {
                 Ok(s) => return Ok(Some(s)),
                 Err(CutError::Misses(j)) => {
                     let k = parts[j].0;

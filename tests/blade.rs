@@ -8,7 +8,7 @@ mod common;
 use common::{bar, case, model, relative_difference, solve};
 use nalgebra::{Point3, Vector3};
 use xfem_cut::blade::{run_dynamic, Blade, BladeError, CutItem, CutSet};
-use xfem_cut::cut::{setup_cut, PlanarPatch, DEFAULT_SNAP};
+use xfem_cut::cut::{setup_cut, CutInput, PlanarPatch, DEFAULT_SNAP};
 use xfem_cut::dynamics::{DynamicOptions, MassKind};
 use xfem_cut::io::{read_pvd, read_vtu};
 use xfem_cut::locate::Locator;
@@ -42,7 +42,7 @@ fn one_blade(b: Blade) -> CutSet {
 fn a_static_blade_takes_the_completed_sweep_and_equals_the_patch() {
     let mesh = bar([3, 3, 6]);
     let g = Vector3::new(-9.81, 0.0, 0.0);
-    let reference = setup_cut(&mesh, &[&patch()], DEFAULT_SNAP).unwrap();
+    let reference = setup_cut(&mesh, &[CutInput::extend(&patch(), DEFAULT_SNAP)]).unwrap();
     let m_ref = model(&mesh, Some(reference), Formulation::Linear, g, None, false).unwrap();
     let d_ref = solve(&m_ref);
     let cuts = one_blade(blade(0.1, 0.6));
@@ -127,7 +127,7 @@ fn cut_events_keep_both_energies_and_refactorise_only_there() {
         assert_eq!(got, full, "events vs a full check after every step");
         assert!(sw.checks < opts.steps);
         // The completed sweep is the patch's set-up.
-        let full = setup_cut(&mesh, &[&patch()], DEFAULT_SNAP).unwrap();
+        let full = setup_cut(&mesh, &[CutInput::extend(&patch(), DEFAULT_SNAP)]).unwrap();
         assert_eq!(run.model.cut.as_ref().unwrap().enriched, full.enriched);
     }
 }
