@@ -271,6 +271,7 @@ impl Swept {
     pub fn into_surface(self) -> Box<dyn CutSurface> {
         match self {
             Swept::Patch(p) => Box::new(p),
+            Swept::Growing(g) => Box::new(g),
             Swept::Strip(s) => Box::new(s),
         }
     }
