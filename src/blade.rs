@@ -18,7 +18,9 @@
 //! - A static scene takes the completed sweep ([`CutSet::completed`]).
 
 use crate::assembly::Rotations;
-use crate::cut::{setup_cut, CutError, CutInput, CutSetup, CutSurface, ElementCut, PlanarPatch};
+use crate::cut::{
+    setup_cut, CutError, CutInput, CutSetup, CutSurface, ElementCut, FrontMode, PlanarPatch,
+};
 use crate::dynamics::{DynamicError, DynamicOptions, Energies, Newmark, State};
 use crate::mesh::TetMesh;
 use crate::model::{Model, ModelError};
@@ -317,6 +319,11 @@ pub enum CutItem {
 pub struct CutSet {
     pub items: Vec<CutItem>,
     pub snap: f64,
+    /// How every front is treated: [`FrontMode::Extend`] (the cut extended
+    /// through front elements) or [`FrontMode::Tip`] (branch functions at
+    /// the nodes of front elements; the front moves with the blade, so
+    /// every step of a sweep is a cut event).
+    pub front: FrontMode,
 }
 
 impl CutSet {
@@ -341,7 +348,17 @@ impl CutSet {
             .cuts
             .first()
             .map_or(crate::cut::DEFAULT_SNAP, |c| c.snap);
-        Ok(CutSet { items, snap })
+        // Scenes give `front` per cut; a progressive run treats all fronts alike (cut[0]'s, default extend).
+        let front =
+            scene
+                .cuts
+                .first()
+                .and_then(|c| c.front)
+                .map_or(FrontMode::Extend, |f| match f {
+                    crate::scene::FrontMode::Tip => FrontMode::Tip,
+                    crate::scene::FrontMode::Extend => FrontMode::Extend,
+                });
+        Ok(CutSet { items, snap, front })
     }
 
     pub fn blades(&self) -> impl Iterator<Item = &Blade> {
@@ -411,7 +428,12 @@ impl CutSet {
             }
             let inputs: Vec<CutInput<'_>> = parts
                 .iter()
-                .map(|p| CutInput::extend(p.1, self.snap))
+                .map(|p| CutInput {
+                    surface: p.1,
+                    snap: self.snap,
+                    front: self.front,
+                    tip_radius: None,
+                })
                 .collect();
             match setup_cut(mesh, &inputs) {
                 Ok(s) => return Ok(Some(s)),
@@ -520,7 +542,12 @@ impl SweepIndex {
         let mut straight = Vec::new();
         let mut paths = Vec::new();
         for b in cuts.blades() {
-            let Some(Swept::Patch(p)) = b.swept(b.end()) else {
+            let straight_patch = match b.swept(b.end()) {
+                Some(Swept::Patch(p)) if cuts.front == FrontMode::Extend => Some(p),
+                _ => None,
+            };
+            let Some(p) = straight_patch else {
+                // A path, or a tip front (ψ moves with the edge): every step.
                 paths.push((b.start(), b.end()));
                 continue;
             };
@@ -600,6 +627,8 @@ pub fn same_setup(a: Option<&CutSetup>, b: Option<&CutSetup>) -> bool {
         (None, None) => true,
         (Some(a), Some(b)) => {
             a.enriched == b.enriched
+                && a.tip == b.tip
+                && a.front_level == b.front_level
                 && a.enriched
                     .iter()
                     .zip(a.node_side.iter().zip(&b.node_side))
@@ -642,8 +671,12 @@ fn same_element(a: &ElementCut, b: &ElementCut) -> bool {
 /// cut): standard DOFs keep their values, enriched DOFs of nodes enriched in
 /// both keep theirs, new enriched DOFs start at zero. Where an enriched
 /// node's side Hᵢ flips (a path's strip moved), uᵢ' = uᵢ − Hᵢ aᵢ keeps the
-/// field: uᵢ + (H − Hᵢ)/2 aᵢ = uᵢ' + (H + Hᵢ)/2 aᵢ. Rotations start at the
-/// identity (corotational steps recompute them from d).
+/// field: uᵢ + (H − Hᵢ)/2 aᵢ = uᵢ' + (H + Hᵢ)/2 aᵢ. With a tip front, a
+/// node's tip block is kept while it stays tip-enriched; a node the front
+/// has passed (tip → Heaviside) starts its Heaviside DOFs at zero and drops
+/// its tip DOFs: no projection yet, so the field changes there and the
+/// event's energies show by how much. Rotations start at the identity
+/// (corotational steps recompute them from d).
 pub fn map_state(old: &Model, new: &Model, state: &State) -> State {
     let n_nodes = new.mesh.n_nodes();
     let n = new.n_dofs();
@@ -663,6 +696,18 @@ pub fn map_state(old: &Model, new: &Model, state: &State) -> State {
                             y[3 * i + c] -= h * x[3 * so + c];
                         }
                     }
+                }
+                // Tip blocks (4 branch functions × 3) of nodes tip-enriched in
+                // both keep their values (their functions follow the moved
+                // front, so the field changes: the event reports the energy jump).
+                if let (Some(to), Some(tn)) = (
+                    oc.tip.get(i).copied().flatten(),
+                    nc.tip.get(i).copied().flatten(),
+                ) {
+                    let so = n_nodes + oc.n_enriched + crate::front::N_BRANCH * to;
+                    let sn = n_nodes + nc.n_enriched + crate::front::N_BRANCH * tn;
+                    y[3 * sn..3 * (sn + crate::front::N_BRANCH)]
+                        .copy_from_slice(&x[3 * so..3 * (so + crate::front::N_BRANCH)]);
                 }
             }
         }
