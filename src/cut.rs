@@ -533,23 +533,36 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
             enrich[i] = true;
         }
     }
-    // Tip-enriched nodes: those of front elements (topological), and every
-    // node within `tip_radius` of the front (geometric). They carry no
-    // Heaviside enrichment (F₁ already jumps across the cut).
+    // Tip-enriched nodes: the vertices of front elements (topological), and
+    // every vertex within `tip_radius` of the front (geometric). The branch
+    // functions ride on the linear partition of unity of the vertices (also
+    // for Tet10: with the quadratic one, c φ F₂ − c φ F₃ − c ψ F₄ ≡ 0 for
+    // every piecewise-linear c makes the enriched space singular). No node of
+    // a front element, nor a tip node, carries the Heaviside enrichment (F₁
+    // jumps across the cut; a Heaviside mid-node would open the cut ahead).
     let mut tip = vec![None; n_nodes];
     let mut n_tip = 0;
     if let Some(segments) = &front {
+        let mut is_vertex = vec![false; n_nodes];
+        for e in 0..mesh.n_elements() {
+            for i in mesh.vertices(e) {
+                is_vertex[i] = true;
+            }
+        }
         let mut is_tip = vec![false; n_nodes];
         for e in 0..mesh.n_elements() {
             if front_element[e] {
                 for &i in mesh.element(e) {
+                    enrich[i] = false;
+                }
+                for i in mesh.vertices(e) {
                     is_tip[i] = true;
                 }
             }
         }
         if let Some(radius) = input.tip_radius {
             for (i, x) in mesh.nodes.iter().enumerate() {
-                if front::front_distance(x, segments) <= radius {
+                if is_vertex[i] && front::front_distance(x, segments) <= radius {
                     is_tip[i] = true;
                 }
             }

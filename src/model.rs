@@ -900,11 +900,12 @@ impl ElementShapes {
         }
         let (f, g) = (dot4(l, &self.phi), dot4(l, &self.psi));
         let (fv, fg) = front::branch_with_gradients(f, g, &self.grad_phi, &self.grad_psi, side);
+        // Tip functions on the vertices' linear partition of unity λ_k.
         for (j, &(k, _)) in self.tip.iter().enumerate() {
             for b in 0..N_BRANCH {
                 let df = fv[b] - self.shift[j][b];
-                vals[a] = n[k] * df;
-                grads[a] = gn[k] * df + fg[b] * n[k];
+                vals[a] = l[k] * df;
+                grads[a] = self.dl[k] * df + fg[b] * l[k];
                 a += 1;
             }
         }
@@ -912,7 +913,7 @@ impl ElementShapes {
 
     /// Quadrature points of an integration cell: collapsed onto the front
     /// where the cell touches it (φ = ψ = 0 at a vertex or an edge), the
-    /// degree-5 rule elsewhere.
+    /// degree-5 rule elsewhere (Tet4; a 5³ Duffy tensor rule for Tet10).
     pub fn cell_rule(&self, cell: &[Point3<f64>; 4]) -> Vec<front::PhysicalPoint> {
         let tol = 1e-9 * self.size;
         // Level sets at the cell's vertices, from the element's vertex values.
@@ -927,6 +928,11 @@ impl ElementShapes {
                 ElementKind::Tet10 => 5,
             };
             return front::cell_rule(cell, on_front, n);
+        }
+        if self.kind == ElementKind::Tet10 {
+            // 14 points × 6 strains < 3 × 50 DOFs of a fully tip-enriched Tet10:
+            // a Duffy-mapped 5³ tensor rule keeps its element matrix definite.
+            return front::cell_rule(cell, [false; 4], 5);
         }
         let v = tet_volume(cell);
         quadrature::DEGREE5
