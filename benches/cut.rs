@@ -8,7 +8,7 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use nalgebra::{Point3, Vector3};
 use std::hint::black_box;
 use xfem_cut::assembly::{equation_shapes, evaluate, Request, Rotations, Workspace};
-use xfem_cut::cut::{setup_cut, CutSetup, PlanarPatch, DEFAULT_SNAP};
+use xfem_cut::cut::{setup_cut, CutInput, CutSetup, PlanarPatch, DEFAULT_SNAP};
 use xfem_cut::dynamics::{DynamicOptions, LinearSolver, Newmark};
 use xfem_cut::material::Material;
 use xfem_cut::mesh::{box_mesh, TetMesh};
@@ -40,7 +40,7 @@ fn beam(div: [usize; 3], tet10: bool) -> TetMesh {
 }
 
 fn cut_of(mesh: &TetMesh) -> CutSetup {
-    let cut = setup_cut(mesh, &[&seed_patch()], DEFAULT_SNAP).unwrap();
+    let cut = setup_cut(mesh, &[CutInput::extend(&seed_patch(), DEFAULT_SNAP)]).unwrap();
     assert!(cut.n_cut() > 0, "bench mesh: the cut splits no element");
     cut
 }
