@@ -19,7 +19,9 @@ fn main() {
     let level: usize = args.get(1).map_or(0, |s| s.parse().expect("level"));
     let steps: usize = args.get(2).map_or(1000, |s| s.parse().expect("steps"));
     let max_cg: usize = args.get(3).map_or(25, |s| s.parse().expect("max CG"));
-    let cg_tolerance: f64 = args.get(4).map_or(1e-10, |s| s.parse().expect("CG tolerance"));
+    let cg_tolerance: f64 = args
+        .get(4)
+        .map_or(1e-10, |s| s.parse().expect("CG tolerance"));
     let scene = Scene::load(Path::new(file)).expect("case loads");
     let (model, _) = scene
         .build(scene.mesh(level).expect("mesh"))
