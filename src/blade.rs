@@ -236,6 +236,14 @@ impl Swept {
             Swept::Strip(s) => s,
         }
     }
+
+    /// The swept surface, owned.
+    pub fn into_surface(self) -> Box<dyn CutSurface> {
+        match self {
+            Swept::Patch(p) => Box::new(p),
+            Swept::Strip(s) => Box::new(s),
+        }
+    }
 }
 
 /// One `[[cut]]` of a scene: a surface given up front, or a blade.
@@ -316,7 +324,7 @@ impl CutSet {
             if parts.is_empty() {
                 return Ok(None);
             }
-            let inputs: Vec<CutInput> = parts
+            let inputs: Vec<CutInput<'_>> = parts
                 .iter()
                 .map(|p| CutInput::extend(p.1, self.snap))
                 .collect();

@@ -219,51 +219,45 @@ fn cut_keys_are_checked_per_cut() {
 }
 
 #[test]
-fn cut_kinds_this_build_cannot_solve_are_refused_clearly() {
+fn cut_kinds_run_or_are_refused_clearly() {
     let dir = tempfile::tempdir().unwrap();
     let blade = "blade = [[0.0, -0.01, 0.1], [0.0, 0.07, 0.1]]";
     let far = "origin = [0.0, 0.0, 0.1875]\nu = [0.015, 0.0, 0.0]\nv = [0.0, 0.06, 0.0]";
     let stl = dir.path().join("incision.stl");
     std::fs::write(&stl, "solid s\nendsolid s\n").unwrap();
+    let dynamic = |cut: &str| {
+        with_cut(cut).replace(
+            "type = \"static\"",
+            "type = \"dynamic\"\ndt = 0.01\nsteps = 2",
+        )
+    };
     assert_refused(&[
         (
             with_cut(&format!("surface = \"{}\"", stl.display())),
             "cut[0].surface",
-            "not supported in this build",
+            "no triangles",
         ),
         (
-            with_cut(&format!(
+            dynamic(&format!(
                 "{blade}\ntravel = [0.015, 0.0, 0.0]\nstart = 0.0\nend = 0.1"
             )),
             "cut[0].blade",
             "not supported in this build",
         ),
-        (
-            with_cut(&format!("{PATCH}\nfront = \"tip\"")),
-            "cut[0].front",
-            "not supported in this build",
-        ),
-        (
-            with_cut(&format!("{PATCH}\ntip_radius = 0.01")),
-            "cut[0].tip_radius",
-            "not supported in this build",
-        ),
-        // Per-cut snap: this build's cut set-up takes one snap for all cuts (it took the last cut's for all).
-        (
-            with_cut(&format!(
-                "{PATCH}\nsnap = 0.01\n[[cut]]\n{far}\nsnap = 0.02"
-            )),
-            "cut[1].snap",
-            "not supported in this build",
-        ),
     ]);
-    // front = "extend" is today's behaviour; two cuts with the same snap run.
-    let text = with_cut(&format!(
-        "{PATCH}\nfront = \"extend\"\nsnap = 0.01\n[[cut]]\n{far}\nsnap = 0.01"
-    ))
-    .replace("levels = [[1, 2, 4]]", "levels = [[1, 2, 8]]");
-    let (ok, err, _dir) = run_case(&text);
-    assert!(ok, "{err}");
+    // Each runs: the seed's front extended or tip-enriched, per-cut snaps, a
+    // static blade (its completed sweep).
+    for cut in [
+        format!("{PATCH}\nfront = \"extend\"\nsnap = 0.01\n[[cut]]\n{far}\nsnap = 0.01"),
+        format!("{PATCH}\nfront = \"tip\""),
+        format!("{PATCH}\ntip_radius = 0.01"),
+        format!("{PATCH}\nsnap = 0.01\n[[cut]]\n{far}\nsnap = 0.02"),
+        format!("{blade}\ntravel = [0.015, 0.0, 0.0]\nstart = 0.0\nend = 0.1"),
+    ] {
+        let text = with_cut(&cut).replace("levels = [[1, 2, 4]]", "levels = [[1, 2, 8]]");
+        let (ok, err, _dir) = run_case(&text);
+        assert!(ok, "{cut}: {err}");
+    }
 }
 
 #[test]
