@@ -333,3 +333,31 @@ fn a_missing_case_file_names_the_os_error() {
         "{err}"
     );
 }
+
+#[test]
+fn a_dynamic_run_writes_a_series_that_reads_back() {
+    let text = GOOD.replace(
+        "type = \"static\"",
+        "type = \"dynamic\"\ndt = 0.01\nsteps = 7\noutput_every = 3",
+    );
+    let (ok, err, dir) = run_case(&text);
+    assert!(ok, "{err}");
+    let out = dir.path().join("out");
+    // Frames: the initial state, steps 3 and 6, and the last step.
+    let series = xfem_cut::io::read_pvd(&out.join("result.pvd")).unwrap();
+    let times: Vec<f64> = series.iter().map(|(t, _)| *t).collect();
+    assert_eq!(times.len(), 4, "{times:?}");
+    assert!((times[3] - 0.07).abs() < 1e-12, "{times:?}");
+    let last = xfem_cut::io::read_vtu(&out.join(&series[3].1)).unwrap();
+    let result = xfem_cut::io::read_vtu(&out.join("result.vtu")).unwrap();
+    assert_eq!(last, result, "the last frame is the result");
+    let first = xfem_cut::io::read_vtu(&out.join(&series[0].1)).unwrap();
+    assert!(
+        first.point_data["u"].1.iter().all(|&u| u == 0.0),
+        "starts at rest"
+    );
+    let (points, disp) = xfem_cut::io::read_probes_csv(&out.join("probes.csv")).unwrap();
+    assert_eq!(points.len(), 2);
+    assert_eq!(points[1], nalgebra::Point3::new(0.03, 0.06, 0.2));
+    assert!(disp[1].x > 0.0, "gravity in +x moves the tip in +x");
+}

@@ -273,8 +273,7 @@ fn a_curved_incision_runs_static_and_dynamic_linear_and_corotational() {
 
 #[test]
 fn the_gmsh_curved_incision_case_runs_static_linear_and_corotational() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("cases/progressive/curved_incision.toml");
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/curved_incision.toml");
     let (mut scene, cuts) = case::load(&path);
     let xfem_cut::blade::CutItem::Surface(surface) = &cuts.items[0] else {
         panic!("a surface cut")
