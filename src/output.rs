@@ -148,16 +148,16 @@ pub fn progressive_frame(model: &Model, d: &[f64], edges: &[[Point3<f64>; 2]]) -
 pub fn write_progressive(out: &Path, frames: &[(f64, VtuData)]) -> Result<(), RunError> {
     let dir = out.join("frames");
     std::fs::create_dir_all(&dir)
-        .map_err(|e| RunError::Output(format!("{}: {e}", dir.display())))?;
+        .map_err(|e| crate::io::IoError::os(&dir, "create the folder", e))?;
     let mut series = Vec::with_capacity(frames.len());
     for (k, (t, data)) in frames.iter().enumerate() {
         let name = format!("frames/result_{k:05}.vtu");
-        write_vtu(&out.join(&name), data).map_err(out_err)?;
+        write_vtu(&out.join(&name), data)?;
         series.push((*t, name));
     }
-    write_pvd(&out.join("result.pvd"), &series).map_err(out_err)?;
+    write_pvd(&out.join("result.pvd"), &series)?;
     if let Some((_, last)) = frames.last() {
-        write_vtu(&out.join("result.vtu"), last).map_err(out_err)?;
+        write_vtu(&out.join("result.vtu"), last)?;
     }
     Ok(())
 }
