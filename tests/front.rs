@@ -807,8 +807,7 @@ fn two_fronts_in_one_element_are_refused_naming_both() {
         &mesh,
         &[CutInput::tip(&a, 1e-4, None), CutInput::tip(&b, 1e-4, None)],
     )
-    .err()
-    .expect("refused");
+    .expect_err("refused");
     let text = err.to_string();
     println!("{text}");
     assert!(text.contains("cut[0]") && text.contains("cut[1]"), "{text}");
