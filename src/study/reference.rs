@@ -201,3 +201,27 @@ pub fn read_quality(path: &Path) -> Result<Vec<ReferenceQuality>, IoError> {
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quality_rows_parse_and_bad_files_are_errors() {
+        let q = ReferenceQuality::parse(
+            "slice,slice_precut,300000,8e-4,3.2e-3,150000,1.12e-3,2e-3,nan,1.5e-3",
+        )
+        .unwrap();
+        assert_eq!((q.dofs, q.coarse_dofs), (300000, 150000));
+        assert!(q.own_opening.is_nan() && q.own_probes == 1.5e-3);
+        assert!(q.resolves(6e-3) && !q.resolves(5.9e-3));
+        assert!(ReferenceQuality::parse("slice,slice_precut,3").is_none());
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("references.csv");
+        std::fs::write(&path, "case,dofs\n").unwrap();
+        assert!(read_quality(&path).is_err());
+        std::fs::write(&path, format!("{QUALITY_HEADER}\nslice,x,1\n")).unwrap();
+        let e = read_quality(&path).unwrap_err().to_string();
+        assert!(e.contains("bad row"), "{e}");
+    }
+}

@@ -296,6 +296,9 @@ pub fn write_report(reports: &Path, criterion_dir: &Path, machine: &str) -> Resu
                 let _ = writeln!(md, "Reference: its own error is unknown (no row in `reports/data/references.csv`; `make refs` writes it): every level is fitted.\n");
             }
         }
+        if case == "slice" {
+            let _ = writeln!(md, "The through-cut has no front; the theory column is the smooth rate (O(h²) Tet4, O(h³) Tet10). The clamped faces meet the free faces at right-angled edges, where the solution has mild singularities (r^λ, λ < 1): they, not the cut, limit the rates seen here, which is why the references are graded towards those edges.\n");
+        }
         if case == "stretch" || case == "bend" {
             let _ = writeln!(md, "A Dirichlet condition on an edge (a line) is not well-posed in 3-D: as h → 0 the solutions converge, slowly (about 1/|log h|), to one that ignores the edge. The errors below are against a fine mesh that still feels the edge, so they say how close the levels are to that mesh, not to a limit; read the `*_face` variants for orders.\n");
         }
@@ -416,10 +419,11 @@ pub fn write_report(reports: &Path, criterion_dir: &Path, machine: &str) -> Resu
         }
         md.push('\n');
     }
+    md.push_str("## Code verification: exact solutions\n\nThe sections above are solution verification (against references computed by other software). Their code-verification half, exact solutions run through `xfem-cut converge` with observed against theoretical orders, is not in the study yet: the manufactured field with a jump across a through-cut needs a body force given by a field and Dirichlet data varying over the outer faces (or tractions), which the case schema does not have; the straight-front near-tip field belongs to the tip-enrichment work. The exact checks that exist are tests: patch tests, the exact corotational tangent against finite differences, the same-mesh equalities with FEniCSx (≤ 1e-10) and scikit-fem (≤ 1e-8).\n\n");
     if let Some(section) = corotational_section(reports)? {
         md.push_str(&section);
     }
-    let benches = criterion_medians(criterion_dir);
+    let benches = benches_kept(reports, criterion_medians(criterion_dir))?;
     if let Some(table) = cut_cost(&benches) {
         md.push_str(&table);
     }
@@ -464,6 +468,33 @@ pub fn write_report(reports: &Path, criterion_dir: &Path, machine: &str) -> Resu
     let tmp = reports.join("README.md.tmp");
     std::fs::write(&tmp, md).map_err(|e| e.to_string())?;
     std::fs::rename(&tmp, reports.join("README.md")).map_err(|e| e.to_string())
+}
+
+/// Criterion medians kept in `reports/data/benches.csv` (id, median ns): written when
+/// `target/criterion` has them, read back when it has none (a checkout that did not run
+/// `make bench-report`), so regenerating the report keeps the last measured benchmarks.
+fn benches_kept(reports: &Path, fresh: Vec<(String, f64)>) -> Result<Vec<(String, f64)>, String> {
+    let path = reports.join("data/benches.csv");
+    if !fresh.is_empty() {
+        let mut text = String::from("id,median_ns\n");
+        for (id, ns) in &fresh {
+            let _ = writeln!(text, "{id},{ns:e}");
+        }
+        std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))?;
+        return Ok(fresh);
+    }
+    let Ok(text) = std::fs::read_to_string(&path) else {
+        return Ok(Vec::new());
+    };
+    text.lines()
+        .skip(1)
+        .filter(|l| !l.trim().is_empty())
+        .map(|l| {
+            l.rsplit_once(',')
+                .and_then(|(id, ns)| Some((id.to_string(), ns.trim().parse().ok()?)))
+                .ok_or_else(|| format!("{}: bad row `{l}`", path.display()))
+        })
+        .collect()
 }
 
 /// The median (ns) of the benchmark of `group` whose id holds every part
@@ -558,6 +589,158 @@ fn reference_family(case: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn row(level: usize, h: f64, l2: f64) -> Row {
+        Row {
+            case: "gravity".into(),
+            variant: "FEM pre-cut".into(),
+            element: "tet4",
+            level,
+            h,
+            elements: 1,
+            dofs: 10 * (level + 1),
+            precompute: 0.0,
+            solve: 0.0,
+            l2,
+            opening: f64::NAN,
+            probes: f64::NAN,
+        }
+    }
+
+    fn quality(own_l2: f64) -> ReferenceQuality {
+        ReferenceQuality {
+            case: "gravity".into(),
+            family: "beam_crack".into(),
+            dofs: 1,
+            front_h: 1e-3,
+            far_h: 3e-3,
+            coarse_dofs: 1,
+            coarse_front_h: 1.4e-3,
+            own_l2,
+            own_opening: f64::NAN,
+            own_probes: f64::NAN,
+        }
+    }
+
+    #[test]
+    fn unresolved_levels_are_left_out_of_the_order_fit() {
+        // Errors exactly O(h) down to the third level, then flattened by the reference's own
+        // error: fitted over all levels the order is lower, over the resolved ones it is 1.
+        let rows = [
+            row(0, 8e-3, 0.08),
+            row(1, 4e-3, 0.04),
+            row(2, 2e-3, 0.02),
+            row(3, 1e-3, 0.012),
+            row(4, 5e-4, 0.011),
+        ];
+        let refs: Vec<&Row> = rows.iter().collect();
+        let all = order(&refs).unwrap();
+        assert!(all < 0.9, "all levels: {all}");
+        let q = quality(0.005);
+        let (fit, kept) = fitted_order(&refs, Some(&q));
+        assert_eq!(kept.iter().map(|r| r.level).collect::<Vec<_>>(), [0, 1, 2]);
+        assert!((fit.unwrap() - 1.0).abs() < 1e-12, "resolved: {fit:?}");
+        // Without a known own error every level is kept.
+        assert_eq!(fitted_order(&refs, None).1.len(), 5);
+        // One resolved level is no fit.
+        assert!(fitted_order(&refs, Some(&quality(0.02))).0.is_none());
+    }
+
+    #[test]
+    fn benchmarks_are_kept_when_criterion_has_none() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir(dir.path().join("data")).unwrap();
+        assert!(benches_kept(dir.path(), Vec::new()).unwrap().is_empty());
+        let fresh = vec![(
+            "cut-step/linear-cut_tet4_1188tets-54cut/1k".to_string(),
+            1.5e5,
+        )];
+        assert_eq!(benches_kept(dir.path(), fresh.clone()).unwrap(), fresh);
+        assert_eq!(benches_kept(dir.path(), Vec::new()).unwrap(), fresh);
+        std::fs::write(
+            dir.path().join("data/benches.csv"),
+            "id,median_ns\nx,notanumber\n",
+        )
+        .unwrap();
+        assert!(benches_kept(dir.path(), Vec::new()).is_err());
+    }
+
+    #[test]
+    fn theory_rates_per_case() {
+        assert_eq!(expected_order("gravity", "FEM pre-cut", "tet10"), Some(1.0));
+        assert_eq!(
+            expected_order("slice", "X-FEM structured", "tet4"),
+            Some(2.0)
+        );
+        assert_eq!(expected_order("slice", "FEM pre-cut", "tet10"), Some(3.0));
+        assert_eq!(expected_order("bend", "FEM pre-cut", "tet4"), None);
+    }
+
+    /// The study's CSV against the graded references' own errors (both committed in
+    /// reports/data): every case has its reference's own error, and on every row whose
+    /// order is fitted the finest fitted level's error is ≥ 3× that own error.
+    #[test]
+    fn every_fitted_row_is_resolved_by_its_reference() {
+        let reports = Path::new(env!("CARGO_MANIFEST_DIR")).join("reports");
+        let rows = read_csv(&reports.join("data/convergence.csv")).unwrap();
+        let quality = qualities(&reports).unwrap();
+        let cases = case_names(&rows);
+        assert!(!cases.is_empty());
+        let mut fitted = 0;
+        for case in &cases {
+            let q = quality
+                .get(case)
+                .unwrap_or_else(|| panic!("{case}: no own error in reports/data/references.csv"));
+            assert!(q.own_l2 > 0.0 && q.own_l2.is_finite(), "{case}: {q:?}");
+            for ((variant, element), rs) in &series(&rows, case) {
+                let (fit, kept) = fitted_order(rs, Some(q));
+                let Some(p) = fit else { continue };
+                let finest = kept.iter().min_by(|a, b| a.h.total_cmp(&b.h)).unwrap();
+                eprintln!(
+                    "{case} {variant} {element}: order {p:.2} over {} levels, finest L{} error {:.3e} = {:.1}× own {:.3e}",
+                    kept.len(),
+                    finest.level,
+                    finest.l2,
+                    finest.l2 / q.own_l2,
+                    q.own_l2
+                );
+                assert!(
+                    finest.l2 >= RESOLVED_FACTOR * q.own_l2,
+                    "{case} {variant} {element}"
+                );
+                fitted += 1;
+            }
+        }
+        assert!(fitted > 0, "no row fitted");
+    }
+
+    /// The pictures of every case exist, are PNGs of some size and the report shows them.
+    #[test]
+    fn pictures_exist_and_the_report_shows_them() {
+        let reports = Path::new(env!("CARGO_MANIFEST_DIR")).join("reports");
+        let readme = std::fs::read_to_string(reports.join("README.md")).unwrap();
+        for case in [
+            "gravity",
+            "stretch",
+            "bend",
+            "stretch_face",
+            "bend_face",
+            "slice",
+        ] {
+            let name = format!("pictures/{case}.png");
+            let bytes =
+                std::fs::read(reports.join(&name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+            assert!(
+                bytes.starts_with(b"\x89PNG\r\n\x1a\n"),
+                "{name} is not a PNG"
+            );
+            assert!(bytes.len() > 50_000, "{name}: only {} bytes", bytes.len());
+            assert!(
+                readme.contains(&format!("]({name})")),
+                "README.md does not show {name}"
+            );
+        }
+    }
 
     #[test]
     fn cut_counts_and_medians_are_read_from_criterion_ids() {
