@@ -446,6 +446,7 @@ pub struct Newmark<'m> {
     pub state: State,
     /// Strain energy of the current state.
     pub strain_energy: f64,
+    last_report: Option<StepReport>,
 }
 
 impl<'m> Newmark<'m> {
@@ -498,6 +499,7 @@ impl<'m> Newmark<'m> {
                 rotations: Rotations::identity(model),
             },
             strain_energy: 0.0,
+            last_report: None,
         })
     }
 
@@ -625,6 +627,17 @@ impl<'m> Newmark<'m> {
 
     /// Advances one time step.
     pub fn step(&mut self) -> Result<StepReport, DynamicError> {
+        let report = self.step_inner()?;
+        self.last_report = Some(report);
+        Ok(report)
+    }
+
+    /// The counters of the last step taken, if any.
+    pub fn last_report(&self) -> Option<StepReport> {
+        self.last_report
+    }
+
+    fn step_inner(&mut self) -> Result<StepReport, DynamicError> {
         let model = self.model;
         let o = self.opts;
         let dt = o.dt;

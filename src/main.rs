@@ -114,6 +114,9 @@ fn run() -> Result<()> {
                 if let Some(steps) = &result.steps {
                     println!("per step: {steps}");
                 }
+                if let Some(sweep) = &result.sweep {
+                    println!("{sweep}");
+                }
             } else {
                 println!(
                     "static: solve {:.1} ms, Newton iterations per load step {:?}, relative residual {:.2e}, {} factorisations",

@@ -94,6 +94,9 @@ fn vtu_data(pic: &Picture) -> VtuData {
 /// Writes `result.vtu` (last state) and, for a dynamic run, `result.pvd` with
 /// one `frames/result_K.vtu` per kept frame; each file whole or not at all.
 pub fn write_result(_scene: &Scene, result: &RunResult, out: &Path) -> Result<(), RunError> {
+    if !result.progressive_frames.is_empty() {
+        return write_progressive(out, &result.progressive_frames);
+    }
     let model = &result.model;
     if !result.frames.is_empty() {
         let dir = out.join("frames");

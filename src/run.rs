@@ -1,12 +1,16 @@
 //! One run of a scene at one level: build, solve, evaluate probes, write outputs.
 
+use crate::assembly::equation_shapes;
+use crate::blade::{run_dynamic, BladeError, CutSet, Sweep};
+use crate::dynamics::DynamicOptions;
 use crate::dynamics::{DynamicError, Energies, Newmark};
+use crate::dynamics::{StepStats, StepSummary};
+use crate::io::VtuData;
 use crate::locate::Locator;
+use crate::mesh::TetMesh;
 use crate::model::Model;
 use crate::plan::Plan;
 use crate::scene::{Analysis, Scene, SceneError};
-use crate::assembly::equation_shapes;
-use crate::dynamics::{StepStats, StepSummary};
 use crate::solve::{Cholesky, Parallelism, SolveError};
 use crate::statics::{solve_static, StaticError};
 use nalgebra::{Point3, Vector3};
@@ -30,6 +34,12 @@ pub enum RunError {
         x: f64,
         y: f64,
         z: f64,
+    },
+    #[error("{file}: {source}")]
+    Blade {
+        file: String,
+        #[source]
+        source: BladeError,
     },
     #[error("writing output: {0}")]
     Output(#[from] crate::io::IoError),
@@ -61,6 +71,10 @@ pub struct RunResult {
     pub energies: Vec<(f64, Energies)>,
     /// Dynamic runs: per-step time, Newton and CG iterations, factorisations.
     pub steps: Option<StepSummary>,
+    /// A dynamic scene with blades: the sweep, and its frames drawn each with
+    /// the model of its time (the cut as it was, the blade edges as lines).
+    pub sweep: Option<Sweep>,
+    pub progressive_frames: Vec<(f64, VtuData)>,
 }
 
 /// Threads of a run (one: the figures the report quotes are per core).
@@ -87,6 +101,16 @@ pub fn solve_scene(
         None => scene.mesh(level)?,
     };
     let t_mesh = t0.elapsed().as_secs_f64();
+    if let (
+        true,
+        Analysis::Dynamic {
+            options,
+            output_every,
+        },
+    ) = (scene.has_blade(), &scene.analysis)
+    {
+        return solve_progressive(scene, mesh, t_mesh, *options, *output_every, keep_frames);
+    }
     let (model, plan) = scene.build(mesh)?;
     let t1 = Instant::now();
     // The fill-reducing rule of `Cholesky::fill_reducing` (METIS nested
@@ -125,6 +149,8 @@ pub fn solve_scene(
                 frames: Vec::new(),
                 energies: Vec::new(),
                 steps: None,
+                sweep: None,
+                progressive_frames: Vec::new(),
             })
         }
         Analysis::Dynamic {
@@ -183,9 +209,86 @@ pub fn solve_scene(
                 frames,
                 energies,
                 steps: Some(stats.summary()),
+                sweep: None,
+                progressive_frames: Vec::new(),
             })
         }
     }
+}
+
+/// A dynamic scene whose blades cut while it runs ([`crate::blade::run_dynamic`]):
+/// the model is rebuilt at each cut event with the scene's selections.
+fn solve_progressive(
+    scene: &Scene,
+    mesh: TetMesh,
+    t_mesh: f64,
+    options: DynamicOptions,
+    output_every: usize,
+    keep_frames: bool,
+) -> Result<RunResult, RunError> {
+    let file = scene.file.display().to_string();
+    let blade_err = |source| RunError::Blade {
+        file: file.clone(),
+        source,
+    };
+    scene.check_mesh_memory(&mesh)?;
+    let t0 = Instant::now();
+    let cuts = CutSet::from_scene(scene).map_err(blade_err)?;
+    let (fixed, tractions) = scene.selections(&mesh)?;
+    let t_setup = t0.elapsed().as_secs_f64();
+    let build = |cut: Option<crate::cut::CutSetup>| {
+        scene.model_input(mesh.clone(), cut, fixed.clone(), &tractions)
+    };
+    let mut frames = Vec::new();
+    let mut energies = Vec::new();
+    let mut iterations = Vec::with_capacity(options.steps);
+    let mut residual: f64 = 0.0;
+    let mut factorisations = 0;
+    let t2 = Instant::now();
+    let result = run_dynamic(&cuts, &mesh, &build, options, |step, model, nm| {
+        if step > 0 {
+            if let Some(r) = nm.last_report() {
+                iterations.push(r.iterations);
+                residual = residual.max(r.residual);
+                factorisations += r.factorisations;
+            }
+        }
+        if step % output_every == 0 || step == options.steps {
+            if keep_frames {
+                let edges = cuts.edges_at(nm.state.time);
+                frames.push((
+                    nm.state.time,
+                    crate::output::progressive_frame(model, &nm.state.d, &edges),
+                ));
+            }
+            energies.push((nm.state.time, nm.energies()));
+        }
+    })
+    .map_err(blade_err)?;
+    let solve = t2.elapsed().as_secs_f64();
+    let n_elements = mesh.n_elements();
+    let plan = Plan::new(scene, &result.model, n_elements, [t_setup, 0.0, 0.0]);
+    Ok(RunResult {
+        plan,
+        d: result.state.d.clone(),
+        model: result.model,
+        timings: Timings {
+            mesh: t_mesh,
+            cut: result.sweep.event_seconds,
+            model: t_setup,
+            symbolic: 0.0,
+            solve,
+            steps: options.steps,
+        },
+        iterations,
+        residual,
+        factorisations: result.sweep.factorisations,
+        frames: Vec::new(),
+        energies,
+        steps: None,
+        sweep: Some(result.sweep),
+        progressive_frames: frames,
+    })
 }
 
 /// Displacement at reference point `x`: located in the mesh; in a cut element

@@ -221,6 +221,13 @@ impl Scene {
         }
     }
 
+    /// Whether a `[[cut]]` is a blade.
+    pub fn has_blade(&self) -> bool {
+        self.cuts
+            .iter()
+            .any(|c| matches!(c.geometry, CutGeometry::Blade { .. }))
+    }
+
     pub fn is_dynamic(&self) -> bool {
         matches!(self.analysis, Analysis::Dynamic { .. })
     }

@@ -11,6 +11,9 @@ use crate::surface::TriangleSurface;
 use nalgebra::{Point3, Vector3};
 use std::time::Instant;
 
+/// Per node: which components are prescribed, and their values.
+pub type Fixed = Vec<(usize, [Option<f64>; 3])>;
+
 impl Scene {
     /// Builds the model of `mesh` and the plan saying what runs. Refuses a
     /// mesh whose model would not fit in memory, a fix or traction that
@@ -18,6 +21,58 @@ impl Scene {
     pub fn build(&self, mesh: TetMesh) -> Result<(Model, Plan), SceneError> {
         self.check_mesh_memory(&mesh)?;
         let t0 = Instant::now();
+        let file = self.file();
+        let (fixed, tractions) = self.selections(&mesh)?;
+        let t_setup = t0.elapsed().as_secs_f64();
+
+        let t1 = Instant::now();
+        let cut = self.setup_cuts(&mesh)?;
+        let t_cut = t1.elapsed().as_secs_f64();
+
+        let t2 = Instant::now();
+        let n_elements = mesh.n_elements();
+        let model = self
+            .model_input(mesh, cut, fixed, &tractions)
+            .map_err(|source| SceneError::Model {
+                file: file.clone(),
+                source,
+            })?;
+        let t_model = t2.elapsed().as_secs_f64();
+        if let Some(part) = model.free_parts().into_iter().next() {
+            if !self.is_dynamic() {
+                return Err(SceneError::FloatingPart { file, part });
+            }
+        }
+        let plan = Plan::new(self, &model, n_elements, [t_setup, t_cut, t_model]);
+        Ok((model, plan))
+    }
+
+    /// The model of `mesh` with the cut set-up `cut` and the selections of
+    /// [`Scene::selections`] (a progressive cut rebuilds it at each event).
+    pub fn model_input(
+        &self,
+        mesh: TetMesh,
+        cut: Option<CutSetup>,
+        fixed: Fixed,
+        tractions: &[Traction],
+    ) -> Result<Model, crate::model::ModelError> {
+        Model::build(ModelInput {
+            mesh,
+            material: self.material,
+            formulation: self.formulation,
+            cut,
+            fixed,
+            gravity: self.gravity,
+            body_force: None,
+            tractions,
+            need_mass: self.is_dynamic(),
+        })
+    }
+
+    /// The nodes the `[[fix]]` boxes select (with their prescribed
+    /// components) and the boundary faces of the `[[traction]]` boxes; a box
+    /// that selects nothing is an error naming it.
+    pub fn selections(&self, mesh: &TetMesh) -> Result<(Fixed, Vec<Traction>), SceneError> {
         let file = self.file();
         let (lo, hi) = mesh.bounding_box();
         let tol = 1e-9 * (hi - lo).norm();
@@ -47,7 +102,7 @@ impl Scene {
                 });
             }
         }
-        let fixed: Vec<(usize, [Option<f64>; 3])> = fixed_nodes
+        let fixed: Fixed = fixed_nodes
             .into_iter()
             .enumerate()
             .filter(|(_, c)| c.iter().any(Option::is_some))
@@ -78,38 +133,7 @@ impl Scene {
                 value: Vector3::from(t.traction),
             });
         }
-        let t_setup = t0.elapsed().as_secs_f64();
-
-        let t1 = Instant::now();
-        let cut = self.setup_cuts(&mesh)?;
-        let t_cut = t1.elapsed().as_secs_f64();
-
-        let t2 = Instant::now();
-        let need_mass = self.is_dynamic();
-        let n_elements = mesh.n_elements();
-        let model = Model::build(ModelInput {
-            mesh,
-            material: self.material,
-            formulation: self.formulation,
-            cut,
-            fixed,
-            gravity: self.gravity,
-            body_force: None,
-            tractions: &tractions,
-            need_mass,
-        })
-        .map_err(|source| SceneError::Model {
-            file: file.clone(),
-            source,
-        })?;
-        let t_model = t2.elapsed().as_secs_f64();
-        if let Some(part) = model.free_parts().into_iter().next() {
-            if !self.is_dynamic() {
-                return Err(SceneError::FloatingPart { file, part });
-            }
-        }
-        let plan = Plan::new(self, &model, n_elements, [t_setup, t_cut, t_model]);
-        Ok((model, plan))
+        Ok((fixed, tractions))
     }
 
     /// The cut set-up of every `[[cut]]` on `mesh` (`None` without cuts).

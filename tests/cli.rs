@@ -231,20 +231,11 @@ fn cut_kinds_run_or_are_refused_clearly() {
             "type = \"dynamic\"\ndt = 0.01\nsteps = 2",
         )
     };
-    assert_refused(&[
-        (
-            with_cut(&format!("surface = \"{}\"", stl.display())),
-            "cut[0].surface",
-            "no triangles",
-        ),
-        (
-            dynamic(&format!(
-                "{blade}\ntravel = [0.015, 0.0, 0.0]\nstart = 0.0\nend = 0.1"
-            )),
-            "cut[0].blade",
-            "not supported in this build",
-        ),
-    ]);
+    assert_refused(&[(
+        with_cut(&format!("surface = \"{}\"", stl.display())),
+        "cut[0].surface",
+        "no triangles",
+    )]);
     // Each runs: the seed's front extended or tip-enriched, per-cut snaps, a
     // static blade (its completed sweep).
     for cut in [
@@ -254,9 +245,11 @@ fn cut_kinds_run_or_are_refused_clearly() {
         format!("{PATCH}\nsnap = 0.01\n[[cut]]\n{far}\nsnap = 0.02"),
         format!("{blade}\ntravel = [0.015, 0.0, 0.0]\nstart = 0.0\nend = 0.1"),
     ] {
-        let text = with_cut(&cut).replace("levels = [[1, 2, 4]]", "levels = [[1, 2, 8]]");
-        let (ok, err, _dir) = run_case(&text);
-        assert!(ok, "{cut}: {err}");
+        for text in [with_cut(&cut), dynamic(&cut)] {
+            let text = text.replace("levels = [[1, 2, 4]]", "levels = [[1, 2, 8]]");
+            let (ok, err, _dir) = run_case(&text);
+            assert!(ok, "{cut}: {err}");
+        }
     }
 }
 
