@@ -3,7 +3,7 @@ SHELL := /bin/bash
 CARGO ?= $(shell command -v cargo || echo $$HOME/.cargo/bin/cargo)
 NP ?= 1
 
-.PHONY: all build test report bench bench-report rust refs-env refs refs-test clean
+.PHONY: all build test fuzz report bench bench-report rust refs-env refs refs-test clean
 
 all: build
 
@@ -19,6 +19,12 @@ build: rust
 # The tests: references at the levels the tests need, then every Rust test (release: the FE tests are heavy).
 test: build $(if $(wildcard refs/refs.mk),refs-test)
 	$(CARGO) test --release
+
+# Fuzzing on stable Rust: 10^6 mutated case files and meshes through parse, validate and set-up
+# (`make test` runs the same test with 10^5).
+FUZZ_COUNT ?= 1000000
+fuzz: rust
+	XFEM_FUZZ_COUNT=$(FUZZ_COUNT) $(CARGO) test --release --test fuzz -- --nocapture
 
 bench: build
 	$(CARGO) bench --bench step --bench cut

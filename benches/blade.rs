@@ -55,6 +55,7 @@ fn cuts() -> CutSet {
     CutSet {
         items: vec![CutItem::Blade(blade)],
         snap: DEFAULT_SNAP,
+        front: xfem_cut::cut::FrontMode::Extend,
     }
 }
 

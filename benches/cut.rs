@@ -1,18 +1,19 @@
 //! Criterion benches of the cut: the precompute split stage by stage (mesh,
 //! cut set-up, element data + pattern, symbolic and numeric factorisation)
 //! for the seed's half-cut beam, and one Newmark step of the cut beam against
-//! the uncut one on the same mesh.
+//! the uncut one on the same mesh: one Newton iteration, and the full step
+//! to tolerance at one and two threads.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use nalgebra::{Point3, Vector3};
 use std::hint::black_box;
-use xfem_cut::assembly::{evaluate, Request, Rotations, Workspace};
-use xfem_cut::cut::{setup_cut, CutSetup, PlanarPatch, DEFAULT_SNAP};
+use xfem_cut::assembly::{equation_shapes, evaluate, Request, Rotations, Workspace};
+use xfem_cut::cut::{setup_cut, CutInput, CutSetup, PlanarPatch, DEFAULT_SNAP};
 use xfem_cut::dynamics::{DynamicOptions, LinearSolver, Newmark};
 use xfem_cut::material::Material;
 use xfem_cut::mesh::{box_mesh, TetMesh};
 use xfem_cut::model::{Formulation, Model, ModelInput};
-use xfem_cut::solve::Cholesky;
+use xfem_cut::solve::{Cholesky, Parallelism};
 
 const MAT: Material = Material {
     young: 3.0e5,
@@ -39,7 +40,7 @@ fn beam(div: [usize; 3], tet10: bool) -> TetMesh {
 }
 
 fn cut_of(mesh: &TetMesh) -> CutSetup {
-    let cut = setup_cut(mesh, &[&seed_patch()], DEFAULT_SNAP).unwrap();
+    let cut = setup_cut(mesh, &[CutInput::extend(&seed_patch(), DEFAULT_SNAP)]).unwrap();
     assert!(cut.n_cut() > 0, "bench mesh: the cut splits no element");
     cut
 }
@@ -151,23 +152,43 @@ fn cut_step(c: &mut Criterion) {
                 let cut = with_cut.then(|| cut_of(&mesh));
                 let n_cut = cut.as_ref().map_or(0, CutSetup::n_cut);
                 let m = model(mesh, cut, formulation);
-                let opts = DynamicOptions {
-                    dt: 0.01,
-                    steps: 1,
-                    max_iterations: 1,
-                    linear_solver: LinearSolver::Direct,
-                    ..DynamicOptions::default()
-                };
-                let mut nm = Newmark::new(&m, Cholesky::new(&m.pattern).unwrap(), opts).unwrap();
-                nm.step().unwrap();
-                let name = format!(
-                    "{f}-{}/{k}/{}tets-{n_cut}cut",
-                    if with_cut { "cut" } else { "uncut" },
-                    m.mesh.n_elements()
-                );
-                g.bench_function(BenchmarkId::new(name, label), |b| {
-                    b.iter(|| black_box(nm.step().unwrap()))
-                });
+                // One Newton iteration (the linearly implicit step), and the
+                // step as a scene runs it: Newton to the default tolerance
+                // (1e-8) on the exact tangent, at one and two threads.
+                let mut variants = vec![("", 1, 1)];
+                if formulation == Formulation::Corotational {
+                    variants.push(("-full", DynamicOptions::default().max_iterations, 1));
+                    variants.push((
+                        "-full-2threads",
+                        DynamicOptions::default().max_iterations,
+                        2,
+                    ));
+                }
+                for (variant, max_iterations, threads) in variants {
+                    let opts = DynamicOptions {
+                        dt: 0.01,
+                        steps: 1,
+                        max_iterations,
+                        linear_solver: LinearSolver::Direct,
+                        ..DynamicOptions::default()
+                    };
+                    let chol = Cholesky::fill_reducing(
+                        &m.pattern,
+                        Some(&equation_shapes(&m)),
+                        Parallelism::threads(threads),
+                    )
+                    .unwrap();
+                    let mut nm = Newmark::new(&m, chol, opts).unwrap();
+                    nm.step().unwrap();
+                    let name = format!(
+                        "{f}{variant}-{}/{k}/{}tets-{n_cut}cut",
+                        if with_cut { "cut" } else { "uncut" },
+                        m.mesh.n_elements()
+                    );
+                    g.bench_function(BenchmarkId::new(name, label), |b| {
+                        b.iter(|| black_box(nm.step().unwrap()))
+                    });
+                }
             }
         }
     }

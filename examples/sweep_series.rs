@@ -36,6 +36,7 @@ fn main() {
     let cuts = CutSet {
         items: vec![CutItem::Blade(blade)],
         snap: DEFAULT_SNAP,
+        front: xfem_cut::cut::FrontMode::Extend,
     };
     let build = |cut| {
         let fixed = mesh

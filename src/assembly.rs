@@ -5,7 +5,9 @@
 //! writes into buffers owned by the caller ([`Workspace`]), allocating nothing.
 
 use crate::model::{group_rotation, Formulation, GroupKernel, Model, NONE};
+use crate::solve::Parallelism;
 use nalgebra::{Matrix3, Vector3};
+use std::ops::Range;
 
 /// Per-step state that persists across iterations: one rotation per group
 /// (the warm start of the next polar decomposition).
@@ -18,10 +20,12 @@ impl Rotations {
     }
 }
 
-/// Scratch buffers sized for the largest element.
+/// Scratch buffers sized for the largest element, and, for a parallel
+/// assembly, one chunk of elements per thread with its own buffers.
 pub struct Workspace {
     disp: Vec<Vector3<f64>>,
     scratch: Scratch,
+    chunks: Vec<Chunk>,
 }
 
 /// The kernel's scratch (rotated gradients, the exact tangent's v_jb).
@@ -30,20 +34,70 @@ struct Scratch {
     cross: Vec<[Vector3<f64>; 3]>,
 }
 
+impl Scratch {
+    fn new(m: usize) -> Scratch {
+        Scratch {
+            rotated: vec![Vector3::zeros(); m],
+            cross: vec![[Vector3::zeros(); 3]; m],
+        }
+    }
+}
+
+/// A contiguous range of elements (and so of groups) assembled by one thread
+/// into its own force and tangent buffers, summed afterwards.
+struct Chunk {
+    elements: Range<usize>,
+    groups: Range<usize>,
+    disp: Vec<Vector3<f64>>,
+    scratch: Scratch,
+    forces: Vec<f64>,
+    tangent: Vec<f64>,
+    energy: f64,
+}
+
 impl Workspace {
+    /// One thread.
     pub fn new(model: &Model) -> Workspace {
+        Workspace::with_parallelism(model, Parallelism::SEQUENTIAL)
+    }
+
+    /// The element loops of [`evaluate`] on `parallelism`'s threads (rayon):
+    /// the elements in as many contiguous chunks, each with its own force and
+    /// tangent buffers (n_dofs + nnz values a thread), summed after the pass.
+    pub fn with_parallelism(model: &Model, parallelism: Parallelism) -> Workspace {
         let m = model
             .elements
             .iter()
             .map(|e| e.shapes.len())
             .max()
             .unwrap_or(0);
+        let n_el = model.elements.len();
+        let threads = parallelism.n_threads().min(n_el).max(1);
+        let chunks = if threads > 1 {
+            (0..threads)
+                .map(|t| {
+                    let elements = t * n_el / threads..(t + 1) * n_el / threads;
+                    let first = model.elements.get(elements.start);
+                    let groups = first.map_or(0, |e| e.groups.start)
+                        ..model.elements[elements.end - 1].groups.end;
+                    Chunk {
+                        elements,
+                        groups,
+                        disp: vec![Vector3::zeros(); m],
+                        scratch: Scratch::new(m),
+                        forces: vec![0.0; model.n_dofs()],
+                        tangent: vec![0.0; model.pattern.nnz()],
+                        energy: 0.0,
+                    }
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
         Workspace {
             disp: vec![Vector3::zeros(); m],
-            scratch: Scratch {
-                rotated: vec![Vector3::zeros(); m],
-                cross: vec![[Vector3::zeros(); 3]; m],
-            },
+            scratch: Scratch::new(m),
+            chunks,
         }
     }
 }
@@ -66,22 +120,24 @@ pub struct Request<'a> {
 /// the deformation gradient of the nodal vector `x` (all DOFs).
 fn for_each_group(
     model: &Model,
+    elements: Range<usize>,
     x: &[f64],
-    ws: &mut Workspace,
+    disp: &mut [Vector3<f64>],
+    scratch: &mut Scratch,
     mut visit: impl FnMut(usize, &[u32], &[Vector3<f64>], &Matrix3<f64>, &mut Scratch),
 ) {
-    for el in &model.elements {
+    for el in &model.elements[elements] {
         let shapes = &model.shape_ids[el.shapes.clone()];
         let m = shapes.len();
         for (a, &s) in shapes.iter().enumerate() {
             let s = s as usize;
-            ws.disp[a] = Vector3::new(x[3 * s], x[3 * s + 1], x[3 * s + 2]);
+            disp[a] = Vector3::new(x[3 * s], x[3 * s + 1], x[3 * s + 2]);
         }
         for g in el.groups.clone() {
             let start = model.groups[g].grads as usize;
             let grads = &model.grads[start..start + m];
-            let f = GroupKernel::deformation_gradient(grads, |a| ws.disp[a]);
-            visit(g, shapes, grads, &f, &mut ws.scratch);
+            let f = GroupKernel::deformation_gradient(grads, |a| disp[a]);
+            visit(g, shapes, grads, &f, scratch);
         }
     }
 }
@@ -117,64 +173,177 @@ pub fn evaluate_damped(
     mut req: Request<'_>,
     damping: f64,
 ) -> f64 {
+    let pass = Pass {
+        model,
+        d,
+        update: req.update_rotations,
+        exact: req.exact_tangent,
+        damping,
+    };
+    if ws.chunks.is_empty() {
+        return pass.run(
+            0..model.elements.len(),
+            &mut rot.0,
+            0,
+            &mut ws.disp,
+            &mut ws.scratch,
+            req.forces,
+            req.tangent,
+        );
+    }
+    let (want_forces, want_tangent) = (req.forces.is_some(), req.tangent.is_some());
+    run_chunks(
+        &pass,
+        &mut rot.0,
+        0,
+        &mut ws.chunks,
+        want_forces,
+        want_tangent,
+    );
     if let Some(f) = req.forces.as_deref_mut() {
-        f.fill(0.0);
+        sum_into(f, ws.chunks.iter().map(|c| &c.forces[..]));
     }
     if let Some(k) = req.tangent.as_deref_mut() {
-        k.fill(0.0);
+        sum_into(k, ws.chunks.iter().map(|c| &c.tangent[..]));
     }
-    let lame = model.lame;
-    let corotational = model.formulation == Formulation::Corotational;
-    let update = req.update_rotations && corotational;
-    let exact = req.exact_tangent && corotational;
-    let mut energy = 0.0;
-    for_each_group(model, d, ws, |g, shapes, grads, f, scratch| {
-        if update {
-            rot.0[g] = group_rotation(model.formulation, f, &rot.0[g]);
+    ws.chunks.iter().map(|c| c.energy).sum()
+}
+
+/// out = Σ parts.
+fn sum_into<'a>(out: &mut [f64], mut parts: impl Iterator<Item = &'a [f64]>) {
+    if let Some(first) = parts.next() {
+        out.copy_from_slice(first);
+    }
+    for part in parts {
+        for (o, p) in out.iter_mut().zip(part) {
+            *o += p;
         }
-        let group = model.groups[g];
-        let kernel = GroupKernel {
-            lame,
-            weight: group.weight,
-            grads,
-            rotation: rot.0[g],
-        };
-        let eps = kernel.strain(f);
-        energy += kernel.energy(&eps);
-        if let Some(out) = req.forces.as_deref_mut() {
-            let sigma = kernel.stress(&eps);
-            kernel.add_forces(&sigma, |a, fa| add_nodal(out, shapes, a, &fa));
+    }
+}
+
+/// Assembles `chunks` (contiguous, groups from `g0` on in `rot`) in
+/// parallel by halving (rayon::join: no allocation).
+fn run_chunks(
+    pass: &Pass<'_>,
+    rot: &mut [Matrix3<f64>],
+    g0: usize,
+    chunks: &mut [Chunk],
+    forces: bool,
+    tangent: bool,
+) {
+    if let [c] = chunks {
+        c.energy = pass.run(
+            c.elements.clone(),
+            rot,
+            g0,
+            &mut c.disp,
+            &mut c.scratch,
+            forces.then_some(&mut c.forces[..]),
+            tangent.then_some(&mut c.tangent[..]),
+        );
+        return;
+    }
+    let mid = chunks.len() / 2;
+    let split = chunks[mid].groups.start;
+    let (left, right) = chunks.split_at_mut(mid);
+    let (rot_left, rot_right) = rot.split_at_mut(split - g0);
+    rayon::join(
+        || run_chunks(pass, rot_left, g0, left, forces, tangent),
+        || run_chunks(pass, rot_right, split, right, forces, tangent),
+    );
+}
+
+/// What one pass of [`evaluate_damped`] computes.
+struct Pass<'a> {
+    model: &'a Model,
+    d: &'a [f64],
+    update: bool,
+    exact: bool,
+    damping: f64,
+}
+
+impl Pass<'_> {
+    /// The pass over `elements`, whose groups' rotations are `rot[g − g0]`;
+    /// overwrites `forces` and `tangent`; returns the strain energy.
+    #[allow(clippy::too_many_arguments)]
+    fn run(
+        &self,
+        elements: Range<usize>,
+        rot: &mut [Matrix3<f64>],
+        g0: usize,
+        disp: &mut [Vector3<f64>],
+        scratch: &mut Scratch,
+        mut forces: Option<&mut [f64]>,
+        mut tangent: Option<&mut [f64]>,
+    ) -> f64 {
+        let (model, damping) = (self.model, self.damping);
+        if let Some(f) = forces.as_deref_mut() {
+            f.fill(0.0);
         }
-        if let Some(k) = req.tangent.as_deref_mut() {
-            let m = shapes.len();
-            let el = &model.elements[model.group_element[g] as usize];
-            let map = &model.scatter[el.scatter..el.scatter + 9 * m * m];
-            let scale = 1.0 + damping;
-            let scattered =
-                |k: &mut [f64], scale: f64, a: usize, b: usize, block: &Matrix3<f64>| {
-                    scatter_block(k, map, 3 * m, a, b, block, scale)
-                };
-            let exact_done = exact
-                && kernel.exact_tangent_blocks(
-                    f,
-                    &mut scratch.rotated[..m],
-                    &mut scratch.cross[..m],
-                    |a, b, block| scattered(k, 1.0, a, b, block),
-                );
-            if exact_done {
-                if damping != 0.0 {
-                    kernel.tangent_blocks(&mut scratch.rotated[..m], |a, b, block| {
-                        scattered(k, damping, a, b, block)
-                    });
+        if let Some(k) = tangent.as_deref_mut() {
+            k.fill(0.0);
+        }
+        let lame = model.lame;
+        let corotational = model.formulation == Formulation::Corotational;
+        let update = self.update && corotational;
+        let exact = self.exact && corotational;
+        let mut energy = 0.0;
+        for_each_group(
+            model,
+            elements,
+            self.d,
+            disp,
+            scratch,
+            |g, shapes, grads, f, scratch| {
+                let r = &mut rot[g - g0];
+                if update {
+                    *r = group_rotation(model.formulation, f, r);
                 }
-            } else {
-                kernel.tangent_blocks(&mut scratch.rotated[..m], |a, b, block| {
-                    scattered(k, scale, a, b, block)
-                });
-            }
-        }
-    });
-    energy
+                let group = model.groups[g];
+                let kernel = GroupKernel {
+                    lame,
+                    weight: group.weight,
+                    grads,
+                    rotation: *r,
+                };
+                let eps = kernel.strain(f);
+                energy += kernel.energy(&eps);
+                if let Some(out) = forces.as_deref_mut() {
+                    let sigma = kernel.stress(&eps);
+                    kernel.add_forces(&sigma, |a, fa| add_nodal(out, shapes, a, &fa));
+                }
+                if let Some(k) = tangent.as_deref_mut() {
+                    let m = shapes.len();
+                    let el = &model.elements[model.group_element[g] as usize];
+                    let map = &model.scatter[el.scatter..el.scatter + 9 * m * m];
+                    let scale = 1.0 + damping;
+                    let scattered =
+                        |k: &mut [f64], scale: f64, a: usize, b: usize, block: &Matrix3<f64>| {
+                            scatter_block(k, map, 3 * m, a, b, block, scale)
+                        };
+                    let exact_done = exact
+                        && kernel.exact_tangent_blocks(
+                            f,
+                            &mut scratch.rotated[..m],
+                            &mut scratch.cross[..m],
+                            |a, b, block| scattered(k, 1.0, a, b, block),
+                        );
+                    if exact_done {
+                        if damping != 0.0 {
+                            kernel.tangent_blocks(&mut scratch.rotated[..m], |a, b, block| {
+                                scattered(k, damping, a, b, block)
+                            });
+                        }
+                    } else {
+                        kernel.tangent_blocks(&mut scratch.rotated[..m], |a, b, block| {
+                            scattered(k, scale, a, b, block)
+                        });
+                    }
+                }
+            },
+        );
+        energy
+    }
 }
 
 /// Adds `scale` × the element block (a, b), b ≤ a, and its transpose (b, a)
@@ -215,19 +384,27 @@ pub fn tangent_product(
     y: &mut [f64],
 ) {
     let lame = model.lame;
-    for_each_group(model, z, ws, |g, shapes, grads, f, _| {
-        let kernel = GroupKernel {
-            lame,
-            weight: model.groups[g].weight,
-            grads,
-            rotation: rot.0[g],
-        };
-        // ∇z = F(z) − I, then the local strain of Rᵀz: sym(Rᵀ ∇z).
-        let rgz = kernel.rotation.transpose() * (f - Matrix3::identity());
-        let eps = (rgz + rgz.transpose()) * 0.5;
-        let sigma = kernel.stress(&eps);
-        kernel.add_forces(&sigma, |a, fa| add_nodal(y, shapes, a, &fa));
-    });
+    let (disp, scratch) = (&mut ws.disp, &mut ws.scratch);
+    for_each_group(
+        model,
+        0..model.elements.len(),
+        z,
+        disp,
+        scratch,
+        |g, shapes, grads, f, _| {
+            let kernel = GroupKernel {
+                lame,
+                weight: model.groups[g].weight,
+                grads,
+                rotation: rot.0[g],
+            };
+            // ∇z = F(z) − I, then the local strain of Rᵀz: sym(Rᵀ ∇z).
+            let rgz = kernel.rotation.transpose() * (f - Matrix3::identity());
+            let eps = (rgz + rgz.transpose()) * 0.5;
+            let sigma = kernel.stress(&eps);
+            kernel.add_forces(&sigma, |a, fa| add_nodal(y, shapes, a, &fa));
+        },
+    );
 }
 /// The shape function (node, or enriched node) of each free equation: the
 /// blocks of a node-wise fill-reducing ordering (three equations a node).

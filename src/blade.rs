@@ -18,7 +18,9 @@
 //! - A static scene takes the completed sweep ([`CutSet::completed`]).
 
 use crate::assembly::Rotations;
-use crate::cut::{setup_cut, CutError, CutSetup, CutSurface, ElementCut, PlanarPatch};
+use crate::cut::{
+    setup_cut, CutError, CutInput, CutSetup, CutSurface, ElementCut, FrontMode, PlanarPatch,
+};
 use crate::dynamics::{DynamicError, DynamicOptions, Energies, Newmark, State};
 use crate::mesh::TetMesh;
 use crate::model::{Model, ModelError};
@@ -43,6 +45,12 @@ pub enum BladeError {
         index: usize,
         other: usize,
         element: usize,
+    },
+    #[error("cut[{index}]: key `surface`: {source}")]
+    Surface {
+        index: usize,
+        #[source]
+        source: crate::surface::SurfaceError,
     },
     #[error(transparent)]
     Cut(#[from] CutError),
@@ -111,7 +119,17 @@ impl Blade {
                 return Err(err(key, message));
             }
         }
-        Ok(Blade { keyframes, index })
+        let blade = Blade { keyframes, index };
+        // A path's completed strip must be a surface (every prefix of it then is).
+        if !blade.is_straight() {
+            blade.strip(blade.end()).map_err(|e| {
+                err(
+                    "path",
+                    format!("the swept strip is not a valid surface: {e}"),
+                )
+            })?;
+        }
+        Ok(blade)
     }
 
     /// A straight sweep: the edge a–b moves by `travel` between `start` and `end`.
@@ -175,21 +193,33 @@ impl Blade {
             let (t0, [a1, _]) = (self.keyframes[0].0, self.keyframes[1].1);
             let t1 = self.keyframes[1].0;
             let travel = a1 - a0;
-            let v = if t >= t1 {
-                travel
-            } else {
-                travel * ((t - t0) / (t1 - t0))
+            let full = PlanarPatch {
+                origin: a0,
+                u: b0 - a0,
+                v: travel,
             };
+            if t >= t1 {
+                return Some(Swept::Patch(full));
+            }
+            let v = travel * ((t - t0) / (t1 - t0));
             if v.norm() == 0.0 {
                 return None;
             }
-            return Some(Swept::Patch(PlanarPatch {
+            let part = PlanarPatch {
                 origin: a0,
                 u: b0 - a0,
                 v,
-            }));
+            };
+            return Some(Swept::Growing(GrowingPatch { full, part }));
         }
-        // Ruled strip: the edges at the keyframes passed and at t.
+        // A prefix of the completed strip, which `new` checked.
+        self.strip(t).ok().flatten().map(Swept::Strip)
+    }
+
+    /// The ruled strip between the edges at the keyframes before t and at t
+    /// (`None` while it has no area).
+    fn strip(&self, t: f64) -> Result<Option<TriangleSurface>, crate::surface::SurfaceError> {
+        let [a0, b0] = self.keyframes[0].1;
         let mut edges: Vec<[Point3<f64>; 2]> = self
             .keyframes
             .iter()
@@ -214,18 +244,19 @@ impl Blade {
             }
         }
         if triangles.is_empty() {
-            return None;
+            return Ok(None);
         }
-        TriangleSurface::new(vertices, triangles, Path::new("blade"))
-            .ok()
-            .map(Swept::Strip)
+        TriangleSurface::new(vertices, triangles, Path::new("blade")).map(Some)
     }
 }
 
 /// A blade's swept surface at some time.
 #[derive(Debug, Clone)]
 pub enum Swept {
+    /// A completed straight sweep: the patch origin = a, u = b − a, v = travel.
     Patch(PlanarPatch),
+    /// A straight sweep under way.
+    Growing(GrowingPatch),
     Strip(TriangleSurface),
 }
 
@@ -233,8 +264,48 @@ impl Swept {
     pub fn surface(&self) -> &dyn CutSurface {
         match self {
             Swept::Patch(p) => p,
+            Swept::Growing(g) => g,
             Swept::Strip(s) => s,
         }
+    }
+
+    /// The swept surface, owned.
+    pub fn into_surface(self) -> Box<dyn CutSurface> {
+        match self {
+            Swept::Patch(p) => Box::new(p),
+            Swept::Growing(g) => Box::new(g),
+            Swept::Strip(s) => Box::new(s),
+        }
+    }
+}
+
+/// A straight sweep under way: the patch swept so far (`part`, v = the
+/// travel so far) with the level set of the completed one (`full`). Both
+/// planes are the same, but u × (c v) normalised differs from u × v in the
+/// last bits: taking Λ from `full` keeps it, and so the sub-tets, bit for
+/// bit the same at every step, so that a step changes the set-up only where
+/// the patch has reached new elements.
+#[derive(Debug, Clone)]
+pub struct GrowingPatch {
+    pub full: PlanarPatch,
+    pub part: PlanarPatch,
+}
+
+impl CutSurface for GrowingPatch {
+    fn level_set(&self, x: &Point3<f64>) -> f64 {
+        self.full.level_set(x)
+    }
+
+    fn overlaps(&self, poly: &[Point3<f64>]) -> bool {
+        self.part.overlaps(poly)
+    }
+
+    fn contains(&self, x: &Point3<f64>, tol: f64) -> bool {
+        self.part.contains(x, tol)
+    }
+
+    fn boundary(&self) -> Vec<[Point3<f64>; 2]> {
+        self.part.boundary()
     }
 }
 
@@ -248,9 +319,48 @@ pub enum CutItem {
 pub struct CutSet {
     pub items: Vec<CutItem>,
     pub snap: f64,
+    /// How every front is treated: [`FrontMode::Extend`] (the cut extended
+    /// through front elements) or [`FrontMode::Tip`] (branch functions at
+    /// the nodes of front elements; the front moves with the blade, so
+    /// every step of a sweep is a cut event).
+    pub front: FrontMode,
 }
 
 impl CutSet {
+    /// The cuts of a scene: its patches, its surfaces read from their files,
+    /// its blades; one snap for all (cut[0]'s), as the scene's set-up uses.
+    pub fn from_scene(scene: &crate::scene::Scene) -> Result<CutSet, BladeError> {
+        use crate::scene::CutGeometry;
+        let mut items = Vec::with_capacity(scene.cuts.len());
+        for (index, c) in scene.cuts.iter().enumerate() {
+            items.push(match &c.geometry {
+                CutGeometry::Patch(p) => CutItem::Surface(Box::new(p.clone())),
+                CutGeometry::Surface(path) => CutItem::Surface(Box::new(
+                    TriangleSurface::read(path)
+                        .map_err(|source| BladeError::Surface { index, source })?,
+                )),
+                CutGeometry::Blade { keyframes } => {
+                    CutItem::Blade(Blade::new(index, keyframes.clone())?)
+                }
+            });
+        }
+        let snap = scene
+            .cuts
+            .first()
+            .map_or(crate::cut::DEFAULT_SNAP, |c| c.snap);
+        // Scenes give `front` per cut; a progressive run treats all fronts alike (cut[0]'s, default extend).
+        let front =
+            scene
+                .cuts
+                .first()
+                .and_then(|c| c.front)
+                .map_or(FrontMode::Extend, |f| match f {
+                    crate::scene::FrontMode::Tip => FrontMode::Tip,
+                    crate::scene::FrontMode::Extend => FrontMode::Extend,
+                });
+        Ok(CutSet { items, snap, front })
+    }
+
     pub fn blades(&self) -> impl Iterator<Item = &Blade> {
         self.items.iter().filter_map(|c| match c {
             CutItem::Blade(b) => Some(b),
@@ -316,8 +426,16 @@ impl CutSet {
             if parts.is_empty() {
                 return Ok(None);
             }
-            let surfaces: Vec<&dyn CutSurface> = parts.iter().map(|p| p.1).collect();
-            match setup_cut(mesh, &surfaces, self.snap) {
+            let inputs: Vec<CutInput<'_>> = parts
+                .iter()
+                .map(|p| CutInput {
+                    surface: p.1,
+                    snap: self.snap,
+                    front: self.front,
+                    tip_radius: None,
+                })
+                .collect();
+            match setup_cut(mesh, &inputs) {
                 Ok(s) => return Ok(Some(s)),
                 Err(CutError::Misses(j)) => {
                     let k = parts[j].0;
@@ -353,23 +471,63 @@ impl CutSet {
 }
 
 /// Which steps can change the cut set-up, so that the others skip the check.
-/// A straight sweep keeps its plane: an element's classification can change
-/// only while the growing patch passes over it, i.e. when the range of its
-/// vertices' patch coordinate t (along the travel, in the completed patch)
-/// meets the new strip [f_prev, f_now]. Elements the plane does not reach
-/// (all vertices on one side, farther than twice the snapping distance)
-/// never change. A path's strip moves, so every step of its sweep is checked.
+///
+/// A straight sweep keeps its plane, so the snapped level set and each
+/// crossed element's section polygon are fixed; only the patch grows, along
+/// t (the travel coordinate of the completed patch, t = f at fraction f of
+/// the sweep). An element's classification (seed section 5.2 rules in
+/// [`crate::cut`]) can then change only where f passes
+/// - the lowest t of its polygon inside the strip 0 ≤ s ≤ 1 (it becomes cut),
+/// - the highest t of its polygon (it stops containing the front),
+/// - the t of the centroid of a face lying in the plane (a node on the cut
+///   may become enriched);
+///
+/// the enrichment follows the classification. These critical fractions are
+/// computed once; a step is checked only when (f_prev, f_now] holds one (with
+/// a 1e-6 margin). A path's strip moves, so every step of its sweep is checked.
 struct SweepIndex {
     straight: Vec<StraightSweep>,
     /// Sweep spans of the other blades.
     paths: Vec<(f64, f64)>,
 }
 
-/// A straight blade's span and the (t_min, t_max) of the elements its plane reaches, sorted.
+/// A straight blade's span and the sorted fractions at which its set-up may change.
 struct StraightSweep {
     start: f64,
     end: f64,
-    ranges: Vec<(f64, f64)>,
+    critical: Vec<f64>,
+}
+
+/// Clips the convex polygon `pts` (s, t) to lo ≤ s ≤ hi; returns its t range.
+fn clipped_t_range(pts: &[(f64, f64)], lo: f64, hi: f64) -> Option<(f64, f64)> {
+    let mut poly = pts.to_vec();
+    for (bound, keep_above) in [(lo, true), (hi, false)] {
+        let inside = |p: &(f64, f64)| {
+            if keep_above {
+                p.0 >= bound
+            } else {
+                p.0 <= bound
+            }
+        };
+        let mut out = Vec::with_capacity(poly.len() + 2);
+        for k in 0..poly.len() {
+            let (a, b) = (poly[k], poly[(k + 1) % poly.len()]);
+            if inside(&a) {
+                out.push(a);
+            }
+            if inside(&a) != inside(&b) && a.0 != b.0 {
+                let w = (bound - a.0) / (b.0 - a.0);
+                out.push((bound, a.1 + w * (b.1 - a.1)));
+            }
+        }
+        poly = out;
+        if poly.is_empty() {
+            return None;
+        }
+    }
+    let tmin = poly.iter().map(|p| p.1).fold(f64::INFINITY, f64::min);
+    let tmax = poly.iter().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max);
+    Some((tmin, tmax))
 }
 
 impl SweepIndex {
@@ -384,47 +542,60 @@ impl SweepIndex {
         let mut straight = Vec::new();
         let mut paths = Vec::new();
         for b in cuts.blades() {
-            let Some(Swept::Patch(p)) = b.swept(b.end()) else {
+            let straight_patch = match b.swept(b.end()) {
+                Some(Swept::Patch(p)) if cuts.front == FrontMode::Extend => Some(p),
+                _ => None,
+            };
+            let Some(p) = straight_patch else {
+                // A path, or a tip front (ψ moves with the edge): every step.
                 paths.push((b.start(), b.end()));
                 continue;
             };
+            // The level set snapped as the set-up does it.
             let phi: Vec<f64> = mesh
                 .nodes
                 .iter()
                 .zip(&h)
                 .map(|(x, hi)| {
                     let f = p.level_set(x);
-                    if f.abs() < 2.0 * cuts.snap * hi {
+                    if f.abs() < cuts.snap * hi {
                         0.0
                     } else {
                         f
                     }
                 })
                 .collect();
-            let mut ranges = Vec::new();
+            let mut critical = Vec::new();
             for e in 0..mesh.n_elements() {
                 let v = mesh.vertices(e);
-                let lo = v.iter().map(|&i| phi[i]).fold(f64::INFINITY, f64::min);
-                let hi = v.iter().map(|&i| phi[i]).fold(f64::NEG_INFINITY, f64::max);
-                if lo > 0.0 || hi < 0.0 {
-                    continue;
+                let f = v.map(|i| phi[i]);
+                let crossed = f.iter().any(|&x| x > 0.0) && f.iter().any(|&x| x < 0.0);
+                if crossed {
+                    let poly = crate::cut::section_polygon(&mesh.vertex_points(e), &f);
+                    let st: Vec<(f64, f64)> = poly.iter().map(|x| p.coordinates(x)).collect();
+                    if let Some((onset, _)) = clipped_t_range(&st, 0.0, 1.0) {
+                        critical.push(onset);
+                        critical.push(st.iter().map(|c| c.1).fold(f64::NEG_INFINITY, f64::max));
+                    }
                 }
-                let st: Vec<(f64, f64)> =
-                    v.iter().map(|&i| p.coordinates(&mesh.nodes[i])).collect();
-                let smin = st.iter().map(|c| c.0).fold(f64::INFINITY, f64::min);
-                let smax = st.iter().map(|c| c.0).fold(f64::NEG_INFINITY, f64::max);
-                if smax < -1e-6 || smin > 1.0 + 1e-6 {
-                    continue;
+                for face in crate::mesh::TET_FACES {
+                    let tri = face.map(|k| v[k]);
+                    if tri.iter().all(|&j| phi[j] == 0.0) {
+                        let c = Point3::from(
+                            tri.iter()
+                                .fold(Vector3::zeros(), |s, &j| s + mesh.nodes[j].coords)
+                                / 3.0,
+                        );
+                        critical.push(p.coordinates(&c).1);
+                    }
                 }
-                let tmin = st.iter().map(|c| c.1).fold(f64::INFINITY, f64::min);
-                let tmax = st.iter().map(|c| c.1).fold(f64::NEG_INFINITY, f64::max);
-                ranges.push((tmin, tmax));
             }
-            ranges.sort_by(|a, b| a.0.total_cmp(&b.0));
+            critical.retain(|c| c.is_finite());
+            critical.sort_by(f64::total_cmp);
             straight.push(StraightSweep {
                 start: b.start(),
                 end: b.end(),
-                ranges,
+                critical,
             });
         }
         SweepIndex { straight, paths }
@@ -443,10 +614,8 @@ impl SweepIndex {
             }
             let frac = |t: f64| ((t - sw.start) / (sw.end - sw.start)).clamp(0.0, 1.0);
             let (f0, f1) = (frac(t0) - margin, frac(t1) + margin);
-            sw.ranges
-                .iter()
-                .take_while(|r| r.0 <= f1)
-                .any(|r| r.1 >= f0)
+            let k = sw.critical.partition_point(|&c| c < f0);
+            k < sw.critical.len() && sw.critical[k] <= f1
         })
     }
 }
@@ -458,6 +627,8 @@ pub fn same_setup(a: Option<&CutSetup>, b: Option<&CutSetup>) -> bool {
         (None, None) => true,
         (Some(a), Some(b)) => {
             a.enriched == b.enriched
+                && a.tip == b.tip
+                && a.front_level == b.front_level
                 && a.enriched
                     .iter()
                     .zip(a.node_side.iter().zip(&b.node_side))
@@ -500,8 +671,12 @@ fn same_element(a: &ElementCut, b: &ElementCut) -> bool {
 /// cut): standard DOFs keep their values, enriched DOFs of nodes enriched in
 /// both keep theirs, new enriched DOFs start at zero. Where an enriched
 /// node's side Hᵢ flips (a path's strip moved), uᵢ' = uᵢ − Hᵢ aᵢ keeps the
-/// field: uᵢ + (H − Hᵢ)/2 aᵢ = uᵢ' + (H + Hᵢ)/2 aᵢ. Rotations start at the
-/// identity (corotational steps recompute them from d).
+/// field: uᵢ + (H − Hᵢ)/2 aᵢ = uᵢ' + (H + Hᵢ)/2 aᵢ. With a tip front, a
+/// node's tip block is kept while it stays tip-enriched; a node the front
+/// has passed (tip → Heaviside) starts its Heaviside DOFs at zero and drops
+/// its tip DOFs: no projection yet, so the field changes there and the
+/// event's energies show by how much. Rotations start at the identity
+/// (corotational steps recompute them from d).
 pub fn map_state(old: &Model, new: &Model, state: &State) -> State {
     let n_nodes = new.mesh.n_nodes();
     let n = new.n_dofs();
@@ -521,6 +696,18 @@ pub fn map_state(old: &Model, new: &Model, state: &State) -> State {
                             y[3 * i + c] -= h * x[3 * so + c];
                         }
                     }
+                }
+                // Tip blocks (4 branch functions × 3) of nodes tip-enriched in
+                // both keep their values (their functions follow the moved
+                // front, so the field changes: the event reports the energy jump).
+                if let (Some(to), Some(tn)) = (
+                    oc.tip.get(i).copied().flatten(),
+                    nc.tip.get(i).copied().flatten(),
+                ) {
+                    let so = n_nodes + oc.n_enriched + crate::front::N_BRANCH * to;
+                    let sn = n_nodes + nc.n_enriched + crate::front::N_BRANCH * tn;
+                    y[3 * sn..3 * (sn + crate::front::N_BRANCH)]
+                        .copy_from_slice(&x[3 * so..3 * (so + crate::front::N_BRANCH)]);
                 }
             }
         }
@@ -718,5 +905,51 @@ pub fn run_dynamic(
         };
         model = new_model;
         carried = Some((mapped, event));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_straight_sweep_is_the_patch_and_a_path_a_strip_ending_at_the_edge() {
+        let (a, b) = (Point3::new(0.1, -0.2, 0.3), Point3::new(0.4, 0.9, 0.2));
+        let travel = Vector3::new(0.05, 0.02, -0.3);
+        let blade = Blade::straight(0, a, b, travel, 1.0, 3.0).unwrap();
+        assert!(blade.swept(1.0).is_none());
+        let Some(Swept::Patch(p)) = blade.swept(5.0) else {
+            panic!("a straight sweep is a patch")
+        };
+        assert_eq!((p.origin, p.u), (a, b - a));
+        assert!((p.v - travel).norm() <= 1e-15);
+        let Some(Swept::Growing(h)) = blade.swept(2.0) else {
+            panic!("a growing patch")
+        };
+        assert!((h.part.v - travel * 0.5).norm() <= 1e-15);
+        let x = Point3::new(0.3, 0.1, -0.2);
+        assert_eq!(h.level_set(&x), p.level_set(&x));
+        let e = blade.edge_at(2.0);
+        assert!((e[0] - (a + travel * 0.5)).norm() <= 1e-15);
+
+        // A path: three keyframes; half-way through the second segment the strip
+        // has the first segment's two triangles and two of the partial one.
+        let k = |x: f64, z: f64| [Point3::new(x, 0.0, z), Point3::new(x, 1.0, z)];
+        let path = Blade::new(
+            3,
+            vec![(0.0, k(0.0, 0.0)), (1.0, k(1.0, 0.0)), (2.0, k(2.0, 1.0))],
+        )
+        .unwrap();
+        let Some(Swept::Strip(s)) = path.swept(1.5) else {
+            panic!("a path sweeps a strip")
+        };
+        assert_eq!(s.n_triangles(), 4);
+        let edge = path.edge_at(1.5);
+        let on_boundary = |p: Point3<f64>| s.boundary().iter().any(|seg| seg.contains(&p));
+        assert!(on_boundary(edge[0]) && on_boundary(edge[1]));
+        // Positive on the side (b − a) × travel points to (here −z), at the distance to the plane z = 0.
+        let n = (edge[1] - edge[0]).cross(&Vector3::new(1.0, 0.0, 0.0));
+        let x = Point3::new(0.5, 0.5, 0.0) + n * 0.1;
+        assert!(s.level_set(&x) > 0.0 && (s.level_set(&x) - 0.1 * n.norm()).abs() < 1e-14);
     }
 }

@@ -21,6 +21,7 @@
 //!   [`ElementCut::Touched`]: their enriched nodes of the other side get
 //!   ψ = (side − H_i)/2 ≠ 0.
 
+use crate::front;
 use crate::mesh::{tet_volume, TetMesh, TET_FACES};
 use nalgebra::{Point3, Vector3};
 
@@ -47,7 +48,7 @@ pub trait CutSurface: Send + Sync {
     fn overlaps(&self, poly: &[Point3<f64>]) -> bool;
     /// Whether `x` (on the surface) lies in the patch, with relative tolerance `tol`.
     fn contains(&self, x: &Point3<f64>, tol: f64) -> bool;
-    /// The surface's boundary segments (the front where they lie inside the body).
+    /// The surface's boundary as segments; the part inside the body is the crack front.
     fn boundary(&self) -> Vec<[Point3<f64>; 2]>;
 }
 
@@ -131,12 +132,8 @@ impl CutSurface for PlanarPatch {
     }
 
     fn boundary(&self) -> Vec<[Point3<f64>; 2]> {
-        let c = [
-            self.origin,
-            self.origin + self.u,
-            self.origin + self.u + self.v,
-            self.origin + self.v,
-        ];
+        let o = self.origin;
+        let c = [o, o + self.u, o + self.u + self.v, o + self.v];
         (0..4).map(|k| [c[k], c[(k + 1) % 4]]).collect()
     }
 }
@@ -173,9 +170,25 @@ pub struct CutSetup {
     pub enriched: Vec<Option<usize>>,
     pub n_enriched: usize,
     pub elements: Vec<ElementCut>,
+    /// Nodal ψ, the signed distance to the front in the surface (negative
+    /// behind it); empty for [`FrontMode::Extend`].
+    pub front_level: Vec<f64>,
+    /// Per node: index of its tip-enriched block (4 branch functions, 12 DOFs).
+    pub tip: Vec<Option<usize>>,
+    pub n_tip: usize,
 }
 
 impl CutSetup {
+    /// Heaviside-enriched nodes (3 DOFs each).
+    pub fn n_heaviside(&self) -> usize {
+        self.n_enriched
+    }
+
+    /// Tip-enriched nodes (12 DOFs each).
+    pub fn n_tip(&self) -> usize {
+        self.n_tip
+    }
+
     pub fn n_cut(&self) -> usize {
         self.elements
             .iter()
@@ -205,21 +218,61 @@ pub enum CutError {
     },
 }
 
+/// What happens where a cut ends inside the body.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum FrontMode {
+    /// The front stays where the surface ends; nodes near it carry the branch functions.
+    #[default]
+    Tip,
+    /// The cut is extended through the elements the front passes (the seed's, section 6.2).
+    Extend,
+}
+
+/// One cut of a scene: its surface and how it is set up.
+#[derive(Clone, Copy)]
+pub struct CutInput<'a> {
+    pub surface: &'a dyn CutSurface,
+    /// Snapping distance relative to the local element size.
+    pub snap: f64,
+    pub front: FrontMode,
+    /// `None`: tip-enrich the nodes of front elements (topological);
+    /// `Some(R)`: every node within R of the front too (geometric).
+    pub tip_radius: Option<f64>,
+}
+
+impl<'a> CutInput<'a> {
+    /// Today's behaviour: the cut extended through front elements.
+    pub fn extend(surface: &'a dyn CutSurface, snap: f64) -> CutInput<'a> {
+        CutInput {
+            surface,
+            snap,
+            front: FrontMode::Extend,
+            tip_radius: None,
+        }
+    }
+
+    /// Tip enrichment, topological (`None`) or within `tip_radius` of the front.
+    pub fn tip(surface: &'a dyn CutSurface, snap: f64, tip_radius: Option<f64>) -> CutInput<'a> {
+        CutInput {
+            surface,
+            snap,
+            front: FrontMode::Tip,
+            tip_radius,
+        }
+    }
+}
+
 /// Shifted Heaviside value ψ = (H(x) − H_i)/2 ∈ {0, ±1}, eq. (58)–(59).
 pub fn psi(side: i8, node_side: i8) -> f64 {
     f64::from(side - node_side) / 2.0
 }
 
 /// Classifies every element and builds the enrichment.
-pub fn setup_cut(
-    mesh: &TetMesh,
-    surfaces: &[&dyn CutSurface],
-    snap: f64,
-) -> Result<CutSetup, CutError> {
-    let mut setups = surfaces
+pub fn setup_cut(mesh: &TetMesh, cuts: &[CutInput<'_>]) -> Result<CutSetup, CutError> {
+    let mut setups = cuts
         .iter()
         .enumerate()
-        .map(|(k, surface)| setup_one(mesh, *surface, k, snap))
+        .map(|(k, cut)| setup_one(mesh, cut, k))
         .collect::<Result<Vec<_>, _>>()?;
     if setups.len() == 1 {
         return Ok(setups.pop().expect("one setup"));
@@ -267,8 +320,17 @@ fn merge(mesh: &TetMesh, setups: Vec<CutSetup>) -> Result<CutSetup, CutError> {
             }
         }
         for i in 0..n_nodes {
-            if s.enriched[i].is_some() {
+            if s.enriched[i].is_some() || s.tip[i].is_some() {
                 claim(i, some_element[i], &mut node_owner)?;
+            }
+        }
+        // Elements holding tip-enriched nodes read the level sets at all their nodes.
+        for e in 0..n_elements {
+            if mesh.element(e).iter().any(|&i| s.tip[i].is_some()) {
+                claim(e, e, &mut element_owner)?;
+                for &i in mesh.element(e) {
+                    claim(i, e, &mut node_owner)?;
+                }
             }
         }
     }
@@ -280,30 +342,46 @@ fn merge(mesh: &TetMesh, setups: Vec<CutSetup>) -> Result<CutSetup, CutError> {
     let node_side = phi.iter().map(|&p| if p >= 0.0 { 1 } else { -1 }).collect();
     let mut enriched = vec![None; n_nodes];
     let mut n_enriched = 0;
+    let mut tip = vec![None; n_nodes];
+    let mut n_tip = 0;
     for i in 0..n_nodes {
         if let Some(k) = node_owner[i] {
             if setups[k].enriched[i].is_some() {
                 enriched[i] = Some(n_enriched);
                 n_enriched += 1;
             }
+            if setups[k].tip[i].is_some() {
+                tip[i] = Some(n_tip);
+                n_tip += 1;
+            }
         }
     }
+    let any_front = setups.iter().any(|s| !s.front_level.is_empty());
+    let front_level = if any_front {
+        (0..n_nodes)
+            .map(|i| {
+                let s = &setups[node_owner[i].unwrap_or(0)];
+                s.front_level.get(i).copied().unwrap_or(f64::INFINITY)
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
     Ok(CutSetup {
         phi,
         node_side,
         enriched,
         n_enriched,
         elements,
+        front_level,
+        tip,
+        n_tip,
     })
 }
 
 /// The set-up of one cut (`index` in the scene, for errors).
-fn setup_one(
-    mesh: &TetMesh,
-    surface: &dyn CutSurface,
-    index: usize,
-    snap: f64,
-) -> Result<CutSetup, CutError> {
+fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSetup, CutError> {
+    let (surface, snap) = (input.surface, input.snap);
     let n_nodes = mesh.n_nodes();
     // Local size per node: the smallest longest-edge of its elements.
     let mut h = vec![f64::INFINITY; n_nodes];
@@ -319,11 +397,34 @@ fn setup_one(
     if phi.iter().any(|p| !p.is_finite()) {
         return Err(CutError::Degenerate(index));
     }
+    // ψ from the unsnapped φ, the front segments and `contains` (tip mode only).
+    let front = match input.front {
+        FrontMode::Extend => None,
+        FrontMode::Tip => Some(front::front_segments(mesh, &surface.boundary())),
+    };
+    let mut front_level: Vec<f64> = match &front {
+        Some(segments) => mesh
+            .nodes
+            .iter()
+            .zip(&phi)
+            .map(|(x, &f)| {
+                let d = front::front_distance(x, segments);
+                front::front_level_set(f, d, surface.contains(x, 0.0))
+            })
+            .collect(),
+        None => Vec::new(),
+    };
     for (p, hi) in phi.iter_mut().zip(&h) {
         if p.abs() < snap * hi {
             *p = 0.0;
         }
     }
+    for (p, hi) in front_level.iter_mut().zip(&h) {
+        if p.abs() < snap * hi {
+            *p = 0.0;
+        }
+    }
+    let mut front_element = vec![false; mesh.n_elements()];
     let node_side: Vec<i8> = phi.iter().map(|&p| if p >= 0.0 { 1 } else { -1 }).collect();
 
     // Crossed elements: cut when their section overlaps the patch.
@@ -345,6 +446,28 @@ fn setup_one(
         let poly = section_polygon(&p, &f);
         if !surface.overlaps(&poly) {
             elements.push(ElementCut::Uncut);
+            continue;
+        }
+        if front.is_some() {
+            // Tip mode: ψ on the section decides: all behind the front (cut),
+            // all ahead (not cut), or the front passes through (split by ψ too).
+            let g = v.map(|i| front_level[i]);
+            let tol = 1e-12 * mesh.element_size(e);
+            let (lo, hi) = section_range(&p, &f, &g);
+            if hi <= tol {
+                elements.push(ElementCut::Cut {
+                    sub_tets: split_tet(&p, &f),
+                    partial: false,
+                });
+            } else if lo >= -tol {
+                elements.push(ElementCut::Uncut);
+            } else {
+                front_element[e] = true;
+                elements.push(ElementCut::Cut {
+                    sub_tets: split_front(&p, &f, &g, tol),
+                    partial: true,
+                });
+            }
             continue;
         }
         let partial = !poly.iter().all(|x| surface.contains(x, 1e-9));
@@ -410,6 +533,48 @@ fn setup_one(
             enrich[i] = true;
         }
     }
+    // Tip-enriched nodes: the vertices of front elements (topological), and
+    // every vertex within `tip_radius` of the front (geometric). The branch
+    // functions ride on the linear partition of unity of the vertices (also
+    // for Tet10: with the quadratic one, c φ F₂ − c φ F₃ − c ψ F₄ ≡ 0 for
+    // every piecewise-linear c makes the enriched space singular). No node of
+    // a front element, nor a tip node, carries the Heaviside enrichment (F₁
+    // jumps across the cut; a Heaviside mid-node would open the cut ahead).
+    let mut tip = vec![None; n_nodes];
+    let mut n_tip = 0;
+    if let Some(segments) = &front {
+        let mut is_vertex = vec![false; n_nodes];
+        for e in 0..mesh.n_elements() {
+            for i in mesh.vertices(e) {
+                is_vertex[i] = true;
+            }
+        }
+        let mut is_tip = vec![false; n_nodes];
+        for e in 0..mesh.n_elements() {
+            if front_element[e] {
+                for &i in mesh.element(e) {
+                    enrich[i] = false;
+                }
+                for i in mesh.vertices(e) {
+                    is_tip[i] = true;
+                }
+            }
+        }
+        if let Some(radius) = input.tip_radius {
+            for (i, x) in mesh.nodes.iter().enumerate() {
+                if is_vertex[i] && front::front_distance(x, segments) <= radius {
+                    is_tip[i] = true;
+                }
+            }
+        }
+        for i in 0..n_nodes {
+            if is_tip[i] {
+                enrich[i] = false;
+                tip[i] = Some(n_tip);
+                n_tip += 1;
+            }
+        }
+    }
     let mut enriched = vec![None; n_nodes];
     let mut n_enriched = 0;
     for i in 0..n_nodes {
@@ -418,7 +583,7 @@ fn setup_one(
             n_enriched += 1;
         }
     }
-    if n_enriched == 0 {
+    if n_enriched == 0 && n_tip == 0 {
         return Err(CutError::Misses(index));
     }
 
@@ -447,7 +612,60 @@ fn setup_one(
         enriched,
         n_enriched,
         elements,
+        front_level,
+        tip,
+        n_tip,
     })
+}
+
+/// Range of the (linear) ψ with vertex values `g` over the section of the
+/// tet `p` by φ = 0 (vertex values `f`).
+fn section_range(p: &[Point3<f64>; 4], f: &[f64; 4], g: &[f64; 4]) -> (f64, f64) {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    let _ = p;
+    for i in 0..4 {
+        if f[i] == 0.0 {
+            lo = lo.min(g[i]);
+            hi = hi.max(g[i]);
+        }
+        for j in i + 1..4 {
+            if (f[i] > 0.0 && f[j] < 0.0) || (f[i] < 0.0 && f[j] > 0.0) {
+                let t = f[i] / (f[i] - f[j]);
+                let v = g[i] + t * (g[j] - g[i]);
+                lo = lo.min(v);
+                hi = hi.max(v);
+            }
+        }
+    }
+    (lo, hi)
+}
+
+/// Splits a front element: its sub-tets on each side of φ = 0, each split
+/// again by ψ = 0 (vertex values `g`, linear over the element), so that the
+/// front φ = ψ = 0 runs along edges and vertices of the pieces. Each piece
+/// keeps the φ-side of its sub-tet.
+pub fn split_front(p: &[Point3<f64>; 4], f: &[f64; 4], g: &[f64; 4], tol: f64) -> Vec<SubTet> {
+    let mut out = Vec::new();
+    for s in split_tet(p, f) {
+        let gs = s.vertices.map(|x| {
+            let l = crate::mesh::barycentric(p, &x).unwrap_or([0.25; 4]);
+            let v: f64 = l.iter().zip(g).map(|(a, b)| a * b).sum();
+            if v.abs() <= tol {
+                0.0
+            } else {
+                v
+            }
+        });
+        if gs.iter().any(|&x| x > 0.0) && gs.iter().any(|&x| x < 0.0) {
+            out.extend(split_tet(&s.vertices, &gs).into_iter().map(|t| SubTet {
+                vertices: t.vertices,
+                side: s.side,
+            }));
+        } else {
+            out.push(s);
+        }
+    }
+    out
 }
 
 /// Points where the plane Λ = 0 meets a crossed tet: zero vertices and
@@ -674,7 +892,7 @@ mod tests {
     fn full_cut_on_a_node_layer_enriches_the_layer() {
         let m = box_mesh(Point3::origin(), Point3::new(1.0, 1.0, 2.0), [2, 2, 4]);
         let s = patch([0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
-        let c = setup_cut(&m, &[&s], DEFAULT_SNAP).unwrap();
+        let c = setup_cut(&m, &[CutInput::extend(&s, DEFAULT_SNAP)]).unwrap();
         let layer: Vec<usize> = (0..m.n_nodes()).filter(|&i| m.nodes[i].z == 1.0).collect();
         assert_eq!(layer.len(), 9);
         assert!(layer.iter().all(|&i| c.enriched[i].is_some()));
@@ -698,7 +916,7 @@ mod tests {
         let s = patch([0.0, 0.0, 0.1], [0.015, 0.0, 0.0], [0.0, 0.06, 0.0]);
         // z = 0.1 on a node layer: the front line x = 0.015 runs along nodes.
         let m = box_mesh(Point3::origin(), Point3::new(0.03, 0.06, 0.2), [2, 4, 14]);
-        let c = setup_cut(&m, &[&s], DEFAULT_SNAP).unwrap();
+        let c = setup_cut(&m, &[CutInput::extend(&s, DEFAULT_SNAP)]).unwrap();
         for i in 0..m.n_nodes() {
             let p = m.nodes[i];
             if (p.z - 0.1).abs() < 1e-12 {
@@ -708,13 +926,13 @@ mod tests {
         }
         // z = 0.1 inside elements (13 divisions), front at x = 0.015 on element faces: fully cut elements only.
         let m = box_mesh(Point3::origin(), Point3::new(0.03, 0.06, 0.2), [2, 4, 13]);
-        let c = setup_cut(&m, &[&s], DEFAULT_SNAP).unwrap();
+        let c = setup_cut(&m, &[CutInput::extend(&s, DEFAULT_SNAP)]).unwrap();
         assert!(c.n_cut() > 0);
         assert_eq!(c.n_partial(), 0);
         // A front at x = 0.014 runs through element interiors: those elements are partial.
         let s = patch([0.0, 0.0, 0.1], [0.014, 0.0, 0.0], [0.0, 0.06, 0.0]);
         let m = box_mesh(Point3::origin(), Point3::new(0.03, 0.06, 0.2), [3, 4, 13]);
-        let c = setup_cut(&m, &[&s], DEFAULT_SNAP).unwrap();
+        let c = setup_cut(&m, &[CutInput::extend(&s, DEFAULT_SNAP)]).unwrap();
         assert!(c.n_partial() > 0);
     }
 
@@ -723,7 +941,7 @@ mod tests {
         let m = box_mesh(Point3::origin(), Point3::new(1.0, 1.0, 1.0), [2, 2, 2]);
         let s = patch([2.0, 0.0, 0.5], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
         assert!(matches!(
-            setup_cut(&m, &[&s], DEFAULT_SNAP),
+            setup_cut(&m, &[CutInput::extend(&s, DEFAULT_SNAP)]),
             Err(CutError::Misses(0))
         ));
     }

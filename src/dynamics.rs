@@ -12,9 +12,11 @@
 use crate::assembly::{
     evaluate, evaluate_damped, gather_free, tangent_product, Request, Rotations, Workspace,
 };
+use crate::corotation::polar_rotation;
 use crate::model::{Formulation, Model, NONE};
 use crate::solve::{Cholesky, Pcg, SolveError};
 use crate::statics::norm;
+use nalgebra::{Matrix3, Vector3};
 
 /// How the Newton systems of a corotational step are solved.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -24,6 +26,13 @@ pub enum LinearSolver {
     /// CG preconditioned by the last factorisation; refactorise only when CG
     /// needs more than `max_cg` iterations.
     Pcg { tolerance: f64, max_cg: usize },
+    /// CG preconditioned by the last factorisation warped by per-node
+    /// rotations: P⁻¹ = S A_f⁻¹ Sᵀ, S = blockdiag(R_s R_{s,f}ᵀ) over the shape
+    /// functions s (R_s: the weighted polar mean of the rotations of the groups
+    /// that s touches, now; R_{s,f}: at the factorisation), so that a rigid
+    /// rotation of the rest state leaves the preconditioner exact for the
+    /// lumped mass (R M Rᵀ = M). Refactorise only when CG needs more than `max_cg`.
+    WarpedPcg { tolerance: f64, max_cg: usize },
 }
 
 /// Mass matrix used in the time integration.
@@ -118,6 +127,104 @@ pub struct StepReport {
     pub cg_iterations: usize,
     /// Iterations where the exact tangent was not positive definite and R K Rᵀ was used.
     pub fallbacks: usize,
+}
+
+/// Per-step figures of a run, collected step by step (what `run` reports:
+/// per-step time median and max, Newton and CG iterations, factorisations).
+#[derive(Debug, Clone, Default)]
+pub struct StepStats {
+    seconds: Vec<f64>,
+    newton: Vec<usize>,
+    cg: usize,
+    factorisations: usize,
+    fallbacks: usize,
+}
+
+/// The summary of a [`StepStats`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepSummary {
+    pub steps: usize,
+    pub seconds_median: f64,
+    pub seconds_max: f64,
+    pub newton_mean: f64,
+    pub newton_max: usize,
+    pub cg_per_step: f64,
+    pub factorisations_per_step: f64,
+    /// Iterations that fell back from the exact tangent to R K Rᵀ.
+    pub fallbacks: usize,
+}
+
+impl StepStats {
+    /// Room for `steps` steps (so that recording allocates nothing).
+    pub fn with_capacity(steps: usize) -> StepStats {
+        StepStats {
+            seconds: Vec::with_capacity(steps),
+            newton: Vec::with_capacity(steps),
+            ..StepStats::default()
+        }
+    }
+
+    /// Records one step: its report and its wall time.
+    pub fn record(&mut self, report: &StepReport, seconds: f64) {
+        self.seconds.push(seconds);
+        self.newton.push(report.iterations);
+        self.cg += report.cg_iterations;
+        self.factorisations += report.factorisations;
+        self.fallbacks += report.fallbacks;
+    }
+
+    /// Newton iterations of each recorded step.
+    pub fn newton_iterations(&self) -> &[usize] {
+        &self.newton
+    }
+
+    pub fn summary(&self) -> StepSummary {
+        let steps = self.seconds.len();
+        let mut sorted = self.seconds.clone();
+        sorted.sort_by(f64::total_cmp);
+        let median = match steps {
+            0 => 0.0,
+            n if n % 2 == 1 => sorted[n / 2],
+            n => 0.5 * (sorted[n / 2 - 1] + sorted[n / 2]),
+        };
+        let per_step = |x: usize| {
+            if steps == 0 {
+                0.0
+            } else {
+                x as f64 / steps as f64
+            }
+        };
+        StepSummary {
+            steps,
+            seconds_median: median,
+            seconds_max: sorted.last().copied().unwrap_or(0.0),
+            newton_mean: per_step(self.newton.iter().sum()),
+            newton_max: self.newton.iter().copied().max().unwrap_or(0),
+            cg_per_step: per_step(self.cg),
+            factorisations_per_step: per_step(self.factorisations),
+            fallbacks: self.fallbacks,
+        }
+    }
+}
+
+impl std::fmt::Display for StepSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} steps: {:.3} ms a step (median), {:.3} ms max; Newton {:.2} a step (max {}), CG {:.1} a step, {:.2} factorisations a step",
+            self.steps,
+            self.seconds_median * 1e3,
+            self.seconds_max * 1e3,
+            self.newton_mean,
+            self.newton_max,
+            self.cg_per_step,
+            self.factorisations_per_step
+        )?;
+        if self.fallbacks > 0 {
+            write!(f, ", {} R K Rᵀ fallbacks", self.fallbacks)?;
+        }
+        Ok(())
+    }
 }
 
 /// The mass matrix as the step uses it: a product y = M x and the entries
@@ -242,6 +349,73 @@ impl MassOperator {
     }
 }
 
+/// Per-shape-function rotations warping a factorisation (see [`LinearSolver::WarpedPcg`]).
+struct Warp {
+    /// Σ w_g R_g over the groups touching each shape function (scratch).
+    sum: Vec<Matrix3<f64>>,
+    /// R_s now.
+    now: Vec<Matrix3<f64>>,
+    /// R_s at the last factorisation.
+    at_factor: Vec<Matrix3<f64>>,
+    /// R_s R_{s,f}ᵀ.
+    relative: Vec<Matrix3<f64>>,
+    full: Vec<f64>,
+    free: Vec<f64>,
+}
+
+impl Warp {
+    fn new(model: &Model) -> Warp {
+        let n = model.n_dofs() / 3;
+        Warp {
+            sum: vec![Matrix3::zeros(); n],
+            now: vec![Matrix3::identity(); n],
+            at_factor: vec![Matrix3::identity(); n],
+            relative: vec![Matrix3::identity(); n],
+            full: vec![0.0; model.n_dofs()],
+            free: vec![0.0; model.n_free],
+        }
+    }
+
+    /// R_s from the group rotations (the previous R_s as the polar guess).
+    fn update(&mut self, model: &Model, rot: &Rotations) {
+        self.sum.fill(Matrix3::zeros());
+        for el in &model.elements {
+            let shapes = &model.shape_ids[el.shapes.clone()];
+            for g in el.groups.clone() {
+                let wr = rot.0[g] * model.groups[g].weight.abs();
+                for &s in shapes {
+                    self.sum[s as usize] += wr;
+                }
+            }
+        }
+        for (now, sum) in self.now.iter_mut().zip(&self.sum) {
+            if sum.norm() > 0.0 {
+                *now = polar_rotation(sum, now);
+            }
+        }
+        for (i, rel) in self.relative.iter_mut().enumerate() {
+            *rel = self.now[i] * self.at_factor[i].transpose();
+        }
+    }
+
+    /// x ← G Q Gᵀ x (free equations; Q = blockdiag(relative) or its transpose).
+    fn apply(&mut self, model: &Model, x: &mut [f64], transpose: bool) {
+        self.full.fill(0.0);
+        for (dof, &eq) in model.equation.iter().enumerate() {
+            if eq != NONE {
+                self.full[dof] = x[eq as usize];
+            }
+        }
+        for (s, q) in self.relative.iter().enumerate() {
+            let v = Vector3::new(self.full[3 * s], self.full[3 * s + 1], self.full[3 * s + 2]);
+            let w = if transpose { q.tr_mul(&v) } else { q * v };
+            self.full[3 * s..3 * s + 3].copy_from_slice(w.as_slice());
+        }
+        gather_free(model, &self.full, &mut self.free);
+        x.copy_from_slice(&self.free);
+    }
+}
+
 /// A Newmark integrator borrowing the model; all buffers allocated once.
 pub struct Newmark<'m> {
     model: &'m Model,
@@ -267,6 +441,7 @@ pub struct Newmark<'m> {
     /// Whether a factorisation of K_eff exists (current for linear scenes, maybe stale for PCG).
     factored: bool,
     pcg: Pcg,
+    warp: Option<Warp>,
     dx: Vec<f64>,
     pub state: State,
     /// Strain energy of the current state.
@@ -312,6 +487,8 @@ impl<'m> Newmark<'m> {
             load_norm: norm(&model.load),
             factored: false,
             pcg: Pcg::new(model.n_free),
+            warp: matches!(opts.linear_solver, LinearSolver::WarpedPcg { .. })
+                .then(|| Warp::new(model)),
             dx: vec![0.0; model.n_free],
             state: State {
                 time: 0.0,
@@ -322,6 +499,12 @@ impl<'m> Newmark<'m> {
             },
             strain_energy: 0.0,
         })
+    }
+
+    /// Runs the element loops on `parallelism`'s threads (the factorisation's
+    /// threads are the [`Cholesky`]'s, set where it is built).
+    pub fn set_parallelism(&mut self, parallelism: crate::solve::Parallelism) {
+        self.ws = Workspace::with_parallelism(self.model, parallelism);
     }
 
     /// The options the integrator runs with.
@@ -529,24 +712,43 @@ impl<'m> Newmark<'m> {
             if need_tangent {
                 self.mass.add_to(model, m_factor, &mut self.keff);
             }
+            if let Some(w) = self.warp.as_mut() {
+                w.update(model, &self.state.rotations);
+            }
             let solved = match (o.linear_solver, need_tangent && self.factored && !linear) {
                 (LinearSolver::Pcg { tolerance, max_cg }, true) => {
-                    let ok = self.pcg.solve(
+                    let chol = &mut self.chol;
+                    self.pcg.solve(
                         &model.pattern,
                         &self.keff,
-                        &mut self.chol,
+                        |z| chol.solve_in_place(z),
                         &self.r_free,
                         &mut self.dx,
                         tolerance,
                         max_cg,
-                    );
-                    if ok {
-                        self.r_free.copy_from_slice(&self.dx);
-                    }
-                    ok
+                    )
+                }
+                (LinearSolver::WarpedPcg { tolerance, max_cg }, true) => {
+                    let (chol, warp) = (&mut self.chol, self.warp.as_mut().expect("warped"));
+                    self.pcg.solve(
+                        &model.pattern,
+                        &self.keff,
+                        |z| {
+                            warp.apply(model, z, true);
+                            chol.solve_in_place(z);
+                            warp.apply(model, z, false);
+                        },
+                        &self.r_free,
+                        &mut self.dx,
+                        tolerance,
+                        max_cg,
+                    )
                 }
                 _ => false,
             };
+            if solved {
+                self.r_free.copy_from_slice(&self.dx);
+            }
             if !solved {
                 if need_tangent {
                     match self.chol.factorize(&self.keff) {
@@ -561,6 +763,10 @@ impl<'m> Newmark<'m> {
                         other => other?,
                     }
                     self.factored = true;
+                    if let Some(w) = self.warp.as_mut() {
+                        w.at_factor.copy_from_slice(&w.now);
+                        w.relative.fill(Matrix3::identity());
+                    }
                 }
                 self.chol.solve_in_place(&mut self.r_free);
             }
@@ -610,4 +816,116 @@ impl<'m> Newmark<'m> {
 
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::material::Material;
+    use crate::mesh::box_mesh;
+    use crate::model::ModelInput;
+    use nalgebra::{Point3, Rotation3};
+
+    /// A free block falling under gravity, lumped mass.
+    fn free_block() -> Model {
+        Model::build(ModelInput {
+            mesh: box_mesh(Point3::origin(), Point3::new(0.03, 0.06, 0.1), [2, 3, 4]),
+            material: Material {
+                young: 3e5,
+                poisson: 0.35,
+                density: 1070.0,
+            },
+            formulation: Formulation::Corotational,
+            cut: None,
+            fixed: Vec::new(),
+            gravity: Some(Vector3::new(0.0, 0.0, -9.81)),
+            body_force: None,
+            tractions: &[],
+            need_mass: true,
+        })
+        .unwrap()
+    }
+
+    /// The report of a step from the block rigidly rotated by 60° (with a
+    /// deforming velocity), after a first step at rest that factorised K_eff there.
+    fn cg_after_rotation(model: &Model, linear_solver: LinearSolver) -> (StepReport, f64) {
+        let opts = DynamicOptions {
+            linear_solver,
+            ..DynamicOptions::default()
+        };
+        let mut nm = Newmark::new(model, Cholesky::new(&model.pattern).unwrap(), opts).unwrap();
+        nm.initialise_acceleration().unwrap();
+        assert!(nm.step().unwrap().factorisations >= 1);
+        let r = Rotation3::from_axis_angle(&Vector3::y_axis(), 60f64.to_radians()).into_inner();
+        for (i, p) in model.mesh.nodes.iter().enumerate() {
+            let u = r * p.coords - p.coords;
+            nm.state.d[3 * i..3 * i + 3].copy_from_slice(u.as_slice());
+        }
+        // A deforming velocity: the step's right-hand side is not rigid.
+        for (i, p) in model.mesh.nodes.iter().enumerate() {
+            let v = Vector3::new((37.0 * p.x).sin(), (23.0 * p.y).cos(), (11.0 * p.z).sin());
+            nm.state.v[3 * i..3 * i + 3].copy_from_slice((v * 0.01).as_slice());
+        }
+        nm.state.rotations.0.fill(r);
+        let report = nm.step().unwrap();
+        (report, report.residual)
+    }
+
+    /// For a rigid rotation of the rest state with lumped mass, K_eff = Q
+    /// K_eff(rest) Qᵀ (R M Rᵀ = M, the tangents rotate with the body), so the
+    /// warped rest factor is the exact inverse: CG converges in one iteration
+    /// per Newton iteration, where the unwarped (lagged) factor needs many.
+    #[test]
+    fn step_stats_summarise_medians_maxima_and_rates() {
+        let mut stats = StepStats::with_capacity(4);
+        for (k, (iterations, seconds)) in [(3, 0.004), (5, 0.010), (4, 0.002), (4, 0.006)]
+            .into_iter()
+            .enumerate()
+        {
+            let report = StepReport {
+                iterations,
+                factorisations: iterations,
+                cg_iterations: 10 * k,
+                fallbacks: usize::from(k == 2),
+                ..StepReport::default()
+            };
+            stats.record(&report, seconds);
+        }
+        let s = stats.summary();
+        assert_eq!(s.steps, 4);
+        assert_eq!(s.seconds_median, 0.005);
+        assert_eq!(s.seconds_max, 0.010);
+        assert_eq!((s.newton_mean, s.newton_max), (4.0, 5));
+        assert_eq!((s.cg_per_step, s.factorisations_per_step), (15.0, 4.0));
+        assert_eq!(s.fallbacks, 1);
+        assert_eq!(stats.newton_iterations(), &[3, 5, 4, 4]);
+        assert_eq!(
+            s.to_string(),
+            "4 steps: 5.000 ms a step (median), 10.000 ms max; Newton 4.00 a step (max 5), CG 15.0 a step, 4.00 factorisations a step, 1 R K Rᵀ fallbacks"
+        );
+        assert_eq!(StepStats::default().summary().steps, 0);
+    }
+
+    #[test]
+    fn the_warped_rest_factor_is_exact_for_a_rigid_rotation() {
+        let model = free_block();
+        let pcg = |warped: bool| {
+            let (tolerance, max_cg) = (1e-10, 200);
+            if warped {
+                LinearSolver::WarpedPcg { tolerance, max_cg }
+            } else {
+                LinearSolver::Pcg { tolerance, max_cg }
+            }
+        };
+        let (warped, _) = cg_after_rotation(&model, pcg(true));
+        let (lagged, _) = cg_after_rotation(&model, pcg(false));
+        println!("after a 60° rotation: warped {warped:?}, lagged {lagged:?}");
+        assert_eq!(warped.factorisations, 0);
+        assert!(warped.iterations >= 1);
+        assert!(warped.cg_iterations <= 2 * warped.iterations, "{warped:?}");
+        assert!(
+            lagged.cg_iterations > 5 * warped.cg_iterations,
+            "{lagged:?}"
+        );
+    }
 }

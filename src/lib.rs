@@ -18,6 +18,7 @@ pub mod corotation;
 pub mod cut;
 pub mod dynamics;
 pub mod element;
+pub mod front;
 pub mod io;
 pub mod kernel;
 pub mod locate;

@@ -15,11 +15,12 @@
 
 use crate::cut::{psi, CutSetup, ElementCut};
 use crate::element::{barycentric_gradients, shape_gradients, shape_values};
+use crate::front::{self, N_BRANCH};
 use crate::material::{Lame, Material};
-use crate::mesh::{tet_volume, ElementKind, TetMesh};
+use crate::mesh::{tet_volume, ElementKind, TetMesh, TET10_EDGES};
 use crate::quadrature::{self, QuadPoint};
 use crate::solve::Pattern;
-use nalgebra::{Point3, Vector3};
+use nalgebra::{Matrix3, Point3, Vector3};
 use std::ops::Range;
 
 pub use crate::kernel::{group_rotation, GroupKernel};
@@ -195,7 +196,8 @@ impl Model {
         let kind = mesh.kind;
         let n_nodes = mesh.n_nodes();
         let n_enriched = cut.as_ref().map_or(0, |c| c.n_enriched);
-        let n_shape = n_nodes + n_enriched;
+        let n_tip = cut.as_ref().map_or(0, |c| c.n_tip);
+        let n_shape = n_nodes + n_enriched + N_BRANCH * n_tip;
         if 3 * n_shape >= NONE as usize {
             return Err(ModelError::TooLarge(3 * n_shape));
         }
@@ -282,6 +284,92 @@ impl Model {
                     vertices: verts,
                     side: 0,
                 }),
+            }
+            // Elements holding tip-enriched nodes: one group per quadrature point.
+            if let Some(shapes) = cut
+                .as_ref()
+                .and_then(|c| ElementShapes::new(&mesh, c, e, &dl, enr_local.clone()))
+            {
+                shape_ids.extend(shapes.tip_shape_ids(n_nodes + n_enriched));
+                let m = shape_ids.len() - first;
+                let ids = &shape_ids[first..];
+                let group_start = groups.len();
+                let mut me = vec![0.0; m * m];
+                let mut vals = vec![0.0; m];
+                let mut gr = vec![Vector3::zeros(); m];
+                for cell in &cells {
+                    let (mut int_n, mut int_n2) = ([0.0; 10], [0.0; 10]);
+                    let cell_volume = tet_volume(&cell.vertices);
+                    if cell_volume <= 0.0 {
+                        continue;
+                    }
+                    for q in shapes.cell_rule(&cell.vertices) {
+                        let bary = crate::mesh::barycentric(&verts, &q.x).unwrap_or([0.25; 4]);
+                        let w = q.weight;
+                        shapes.eval(&bary, cell.side, &mut vals, &mut gr);
+                        groups.push(Group {
+                            weight: w,
+                            grads: grads.len() as u32,
+                        });
+                        group_element.push(e as u32);
+                        grads.extend_from_slice(&gr);
+                        if gravity.is_some() || body_force.is_some() {
+                            let mut f = gravity.map_or(Vector3::zeros(), |g| g * rho);
+                            if let Some(bf) = body_force {
+                                f += bf(&q.x);
+                            }
+                            for (a, &v) in vals.iter().enumerate() {
+                                let sid = ids[a] as usize;
+                                for c in 0..3 {
+                                    load[3 * sid + c] += w * f[c] * v;
+                                }
+                            }
+                        }
+                        if need_mass {
+                            for a in 0..m {
+                                for b in 0..m {
+                                    me[a * m + b] += rho * w * vals[a] * vals[b];
+                                }
+                            }
+                            for k in 0..nn {
+                                int_n[k] += w * vals[k];
+                                int_n2[k] += w * vals[k] * vals[k];
+                            }
+                        }
+                    }
+                    if let (Some(lumped), Some(coupling)) = (lumped.as_mut(), coupling.as_mut()) {
+                        let share = lump_cell_mass(kind, rho, cell_volume, &int_n, &int_n2);
+                        for k in 0..nn {
+                            lumped[ids[k] as usize] += share[k];
+                        }
+                        for (j, &k) in shapes.heaviside.iter().enumerate() {
+                            let p = if cell.side == 0 {
+                                0.0
+                            } else {
+                                psi(cell.side, node_side[k])
+                            };
+                            let enriched = ids[nn + j] as usize;
+                            lumped[enriched] += p * p * share[k];
+                            coupling[enriched - n_nodes] += p * share[k];
+                        }
+                    }
+                }
+                if let Some(lumped) = lumped.as_mut() {
+                    // Tip DOFs: the diagonal of the consistent mass (no coupling).
+                    for a in nn + shapes.heaviside.len()..m {
+                        lumped[ids[a] as usize] += me[a * m + a];
+                    }
+                }
+                if need_mass {
+                    mass_entries.push((first..first + m, me));
+                }
+                elements.push(ElementData {
+                    shapes: first..first + m,
+                    groups: group_start..groups.len(),
+                    scatter: scatter_len,
+                });
+                scatter_len += 9 * m * m;
+                continue;
             }
             let m = shape_ids.len() - first;
             let psi_of = |cell: &Cell, k: usize| -> f64 {
@@ -541,12 +629,135 @@ impl Model {
                 let s = self.mesh.n_nodes() + j;
                 u += Vector3::new(d[3 * s], d[3 * s + 1], d[3 * s + 2]) * p;
             }
+            if let (Some(t), true) = (c.tip[node], side != 0) {
+                // Shifted branch functions vanish at their node, except F₁ seen
+                // from the other side of a node on the cut face.
+                let (f, g) = (c.phi[node], c.front_level[node]);
+                let own = if f >= 0.0 { 1 } else { -1 };
+                let r = f.hypot(g);
+                let here = front::branch_values(r, front::polar_angle(f, g, side));
+                let shift = front::branch_values(r, front::polar_angle(f, g, own));
+                let first = self.mesh.n_nodes() + c.n_enriched + N_BRANCH * t;
+                for b in 0..N_BRANCH {
+                    let s = first + b;
+                    u += Vector3::new(d[3 * s], d[3 * s + 1], d[3 * s + 2]) * (here[b] - shift[b]);
+                }
+            }
         }
         u
     }
 
+    /// Local nodes of element `e` whose Heaviside shape functions the element holds.
+    fn heaviside_local(&self, e: usize) -> Vec<usize> {
+        let Some(c) = &self.cut else {
+            return Vec::new();
+        };
+        let conn = self.mesh.element(e);
+        (0..conn.len())
+            .filter(|&k| {
+                let i = conn[k];
+                c.enriched[i].is_some()
+                    && match &c.elements[e] {
+                        ElementCut::Cut { .. } => true,
+                        ElementCut::Touched { side } => psi(*side, c.node_side[i]) != 0.0,
+                        ElementCut::Uncut => false,
+                    }
+            })
+            .collect()
+    }
+
+    /// The side an element's field is seen from at a point of side `side`.
+    fn element_side(&self, e: usize, side: i8) -> i8 {
+        match self.cut.as_ref().map(|c| &c.elements[e]) {
+            Some(ElementCut::Cut { .. }) => side,
+            Some(ElementCut::Touched { side }) => *side,
+            _ => 0,
+        }
+    }
+
+    /// Displacement u_h and its gradient ∇u_h at reference point `x` of
+    /// element `e`, on side `side` of the cut (every shape function, tip ones included).
+    pub fn field_at(
+        &self,
+        d: &[f64],
+        e: usize,
+        x: &Point3<f64>,
+        side: i8,
+    ) -> (Vector3<f64>, Matrix3<f64>) {
+        let verts = self.mesh.vertex_points(e);
+        let bary = crate::mesh::barycentric(&verts, x).unwrap_or([0.25; 4]);
+        let dl = barycentric_gradients(&verts).unwrap_or([Vector3::zeros(); 4]);
+        let ids = self.element_shapes(e);
+        let m = ids.len();
+        let (mut vals, mut grads) = (vec![0.0; m], vec![Vector3::zeros(); m]);
+        let side = self.element_side(e, side);
+        match &self.cut {
+            Some(c) => {
+                let shapes = ElementShapes::any(&self.mesh, c, e, &dl, self.heaviside_local(e));
+                shapes.eval(&bary, side, &mut vals, &mut grads);
+            }
+            None => {
+                shape_values(self.mesh.kind, &bary, &mut vals);
+                shape_gradients(self.mesh.kind, &bary, &dl, &mut grads);
+            }
+        }
+        let (mut u, mut gu) = (Vector3::zeros(), Matrix3::zeros());
+        for (a, &s) in ids.iter().enumerate() {
+            let s = s as usize;
+            let da = Vector3::new(d[3 * s], d[3 * s + 1], d[3 * s + 2]);
+            u += da * vals[a];
+            gu += da * grads[a].transpose();
+        }
+        (u, gu)
+    }
+
+    /// Quadrature points (position, weight, side) covering element `e` for
+    /// integrating fields with a front singularity: the element's cells, with
+    /// rules collapsed onto the front where they touch it, degree 5 elsewhere.
+    pub fn field_points(&self, e: usize) -> Vec<(Point3<f64>, f64, i8)> {
+        let verts = self.mesh.vertex_points(e);
+        let cells: Vec<([Point3<f64>; 4], i8)> = match self.cut.as_ref().map(|c| &c.elements[e]) {
+            Some(ElementCut::Cut { sub_tets, .. }) => {
+                sub_tets.iter().map(|s| (s.vertices, s.side)).collect()
+            }
+            Some(ElementCut::Touched { side }) => vec![(verts, *side)],
+            _ => vec![(verts, 0)],
+        };
+        let dl = barycentric_gradients(&verts).unwrap_or([Vector3::zeros(); 4]);
+        let mut out = Vec::new();
+        for (cell, side) in cells {
+            match &self.cut {
+                Some(c) if !c.front_level.is_empty() => {
+                    let shapes = ElementShapes::any(&self.mesh, c, e, &dl, Vec::new());
+                    out.extend(
+                        shapes
+                            .cell_rule(&cell)
+                            .into_iter()
+                            .map(|q| (q.x, q.weight, side)),
+                    );
+                }
+                _ => {
+                    let v = tet_volume(&cell);
+                    out.extend(quadrature::DEGREE5.iter().map(|q| {
+                        let x = cell
+                            .iter()
+                            .zip(q.bary)
+                            .fold(Vector3::zeros(), |s, (p, l)| s + p.coords * l);
+                        (Point3::from(x), q.weight * v, side)
+                    }));
+                }
+            }
+        }
+        out
+    }
+
     /// Displacement at reference point `x` inside element `e` on side `side`.
     pub fn displacement_at(&self, d: &[f64], e: usize, x: &Point3<f64>, side: i8) -> Vector3<f64> {
+        if let Some(c) = &self.cut {
+            if self.mesh.element(e).iter().any(|&i| c.tip[i].is_some()) {
+                return self.field_at(d, e, x, side).0;
+            }
+        }
         let verts = self.mesh.vertex_points(e);
         let bary = crate::mesh::barycentric(&verts, x).unwrap_or([0.25; 4]);
         let mut n = [0.0; 10];
@@ -563,6 +774,201 @@ impl Model {
         }
         u
     }
+}
+
+/// The shape functions of an element holding tip-enriched nodes, evaluated
+/// point by point: its nodes' N_k, the shifted Heaviside ψ N_k of its
+/// Heaviside-enriched nodes (eq. 58–59), then per tip-enriched node four
+/// N_k (F_b − F_b(x_k)) with gradients ∇N_k (F_b − F_b(x_k)) + N_k ∇F_b.
+/// φ and ψ are interpolated linearly from the element's vertices.
+pub struct ElementShapes {
+    kind: ElementKind,
+    verts: [Point3<f64>; 4],
+    dl: [Vector3<f64>; 4],
+    /// Local nodes carrying the Heaviside enrichment (in shape order).
+    pub heaviside: Vec<usize>,
+    /// Local nodes carrying the tip enrichment, with their tip block ids.
+    pub tip: Vec<(usize, usize)>,
+    node_side: [i8; 10],
+    phi: [f64; 4],
+    psi: [f64; 4],
+    grad_phi: Vector3<f64>,
+    grad_psi: Vector3<f64>,
+    /// F_b(x_k) of each tip node (on its own side).
+    shift: Vec<[f64; N_BRANCH]>,
+    /// Local element size (tolerance for vertices on the front).
+    size: f64,
+}
+
+impl ElementShapes {
+    /// The shapes of element `e`, or `None` when it holds no tip-enriched node.
+    pub fn new(
+        mesh: &TetMesh,
+        cut: &CutSetup,
+        e: usize,
+        dl: &[Vector3<f64>; 4],
+        heaviside: Vec<usize>,
+    ) -> Option<ElementShapes> {
+        let s = ElementShapes::any(mesh, cut, e, dl, heaviside);
+        (!s.tip.is_empty()).then_some(s)
+    }
+
+    /// The shapes of element `e`, with or without tip-enriched nodes.
+    pub fn any(
+        mesh: &TetMesh,
+        cut: &CutSetup,
+        e: usize,
+        dl: &[Vector3<f64>; 4],
+        heaviside: Vec<usize>,
+    ) -> ElementShapes {
+        let conn = mesh.element(e);
+        let tip: Vec<(usize, usize)> = conn
+            .iter()
+            .enumerate()
+            .filter_map(|(k, &i)| cut.tip[i].map(|t| (k, t)))
+            .collect();
+        let v = mesh.vertices(e);
+        let phi = v.map(|i| cut.phi[i]);
+        let psi = v.map(|i| cut.front_level.get(i).copied().unwrap_or(0.0));
+        let grad_phi = (0..4).fold(Vector3::zeros(), |s, k| s + dl[k] * phi[k]);
+        let grad_psi = (0..4).fold(Vector3::zeros(), |s, k| s + dl[k] * psi[k]);
+        let mut node_side = [0i8; 10];
+        for (k, &i) in conn.iter().enumerate() {
+            node_side[k] = cut.node_side[i];
+        }
+        let shift = tip
+            .iter()
+            .map(|&(k, _)| {
+                let l = node_bary(k);
+                let (f, g) = (dot4(&l, &phi), dot4(&l, &psi));
+                let side = if f >= 0.0 { 1 } else { -1 };
+                front::branch_values(f.hypot(g), front::polar_angle(f, g, side))
+            })
+            .collect();
+        ElementShapes {
+            kind: mesh.kind,
+            verts: mesh.vertex_points(e),
+            dl: *dl,
+            heaviside,
+            tip,
+            node_side,
+            phi,
+            psi,
+            grad_phi,
+            grad_psi,
+            shift,
+            size: mesh.element_size(e),
+        }
+    }
+
+    /// Number of shape functions.
+    pub fn len(&self) -> usize {
+        self.kind.nodes() + self.heaviside.len() + N_BRANCH * self.tip.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    /// Global ids of the tip shape functions (`first` = id of tip block 0's first function).
+    pub fn tip_shape_ids(&self, first: usize) -> impl Iterator<Item = u32> + '_ {
+        self.tip
+            .iter()
+            .flat_map(move |&(_, t)| (0..N_BRANCH).map(move |b| (first + N_BRANCH * t + b) as u32))
+    }
+
+    /// Values and gradients of all shape functions at barycentric `l`, seen
+    /// from side `side` (±1 for a cell on one side of the cut, 0 elsewhere).
+    pub fn eval(&self, l: &[f64; 4], side: i8, vals: &mut [f64], grads: &mut [Vector3<f64>]) {
+        let nn = self.kind.nodes();
+        let mut n = [0.0; 10];
+        let mut gn = [Vector3::zeros(); 10];
+        shape_values(self.kind, l, &mut n);
+        shape_gradients(self.kind, l, &self.dl, &mut gn);
+        vals[..nn].copy_from_slice(&n[..nn]);
+        grads[..nn].copy_from_slice(&gn[..nn]);
+        let mut a = nn;
+        for &k in &self.heaviside {
+            let p = if side == 0 {
+                0.0
+            } else {
+                psi(side, self.node_side[k])
+            };
+            vals[a] = n[k] * p;
+            grads[a] = gn[k] * p;
+            a += 1;
+        }
+        let (f, g) = (dot4(l, &self.phi), dot4(l, &self.psi));
+        let (fv, fg) = front::branch_with_gradients(f, g, &self.grad_phi, &self.grad_psi, side);
+        // Tip functions on the vertices' linear partition of unity λ_k.
+        for (j, &(k, _)) in self.tip.iter().enumerate() {
+            for b in 0..N_BRANCH {
+                let df = fv[b] - self.shift[j][b];
+                vals[a] = l[k] * df;
+                grads[a] = self.dl[k] * df + fg[b] * l[k];
+                a += 1;
+            }
+        }
+    }
+
+    /// Quadrature points of an integration cell: collapsed onto the front
+    /// where the cell touches it (φ = ψ = 0 at a vertex or an edge), the
+    /// degree-5 rule elsewhere (Tet4; a 5³ Duffy tensor rule for Tet10).
+    pub fn cell_rule(&self, cell: &[Point3<f64>; 4]) -> Vec<front::PhysicalPoint> {
+        let tol = 1e-9 * self.size;
+        // Level sets at the cell's vertices, from the element's vertex values.
+        let parent = self.vertices_from_cell(cell);
+        let on_front = parent.map(|l| match l {
+            Some(l) => dot4(&l, &self.phi).abs() <= tol && dot4(&l, &self.psi).abs() <= tol,
+            None => false,
+        });
+        if on_front.iter().any(|&b| b) {
+            let n = match self.kind {
+                ElementKind::Tet4 => 4,
+                ElementKind::Tet10 => 5,
+            };
+            return front::cell_rule(cell, on_front, n);
+        }
+        if self.kind == ElementKind::Tet10 {
+            // 14 points × 6 strains < 3 × 50 DOFs of a fully tip-enriched Tet10:
+            // a Duffy-mapped 5³ tensor rule keeps its element matrix definite.
+            return front::cell_rule(cell, [false; 4], 5);
+        }
+        let v = tet_volume(cell);
+        quadrature::DEGREE5
+            .iter()
+            .map(|q| front::PhysicalPoint {
+                x: Point3::from(
+                    cell.iter()
+                        .zip(q.bary)
+                        .fold(Vector3::zeros(), |s, (p, l)| s + p.coords * l),
+                ),
+                weight: q.weight * v,
+            })
+            .collect()
+    }
+
+    /// Barycentric coordinates (in the element) of the cell's vertices.
+    fn vertices_from_cell(&self, cell: &[Point3<f64>; 4]) -> [Option<[f64; 4]>; 4] {
+        cell.map(|x| crate::mesh::barycentric(&self.verts, &x))
+    }
+}
+
+fn dot4(l: &[f64; 4], v: &[f64; 4]) -> f64 {
+    l[0] * v[0] + l[1] * v[1] + l[2] * v[2] + l[3] * v[3]
+}
+
+/// Barycentric coordinates of local node `k` (a vertex or a Tet10 mid-edge node).
+fn node_bary(k: usize) -> [f64; 4] {
+    let mut l = [0.0; 4];
+    if k < 4 {
+        l[k] = 1.0;
+    } else {
+        let (a, b) = TET10_EDGES[k - 4];
+        l[a] = 0.5;
+        l[b] = 0.5;
+    }
+    l
 }
 
 /// Maps reference quadrature point `q` of the cell `cell` (a sub-tet of the

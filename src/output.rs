@@ -91,10 +91,6 @@ fn vtu_data(pic: &Picture) -> VtuData {
     data
 }
 
-fn out_err(e: crate::io::IoError) -> RunError {
-    RunError::Output(e.to_string())
-}
-
 /// Writes `result.vtu` (last state) and, for a dynamic run, `result.pvd` with
 /// one `frames/result_K.vtu` per kept frame; each file whole or not at all.
 pub fn write_result(_scene: &Scene, result: &RunResult, out: &Path) -> Result<(), RunError> {
@@ -102,20 +98,20 @@ pub fn write_result(_scene: &Scene, result: &RunResult, out: &Path) -> Result<()
     if !result.frames.is_empty() {
         let dir = out.join("frames");
         std::fs::create_dir_all(&dir)
-            .map_err(|e| RunError::Output(format!("{}: {e}", dir.display())))?;
+            .map_err(|e| crate::io::IoError::os(&dir, "create the folder", e))?;
         let mut series = Vec::with_capacity(result.frames.len());
         for (k, (t, d)) in result.frames.iter().enumerate() {
             let name = format!("frames/result_{k:05}.vtu");
-            write_vtu(&out.join(&name), &vtu_data(&picture(model, d))).map_err(out_err)?;
+            write_vtu(&out.join(&name), &vtu_data(&picture(model, d)))?;
             series.push((*t, name));
         }
-        write_pvd(&out.join("result.pvd"), &series).map_err(out_err)?;
+        write_pvd(&out.join("result.pvd"), &series)?;
     }
     write_vtu(
         &out.join("result.vtu"),
         &vtu_data(&picture(model, &result.d)),
     )
-    .map_err(out_err)
+    .map_err(RunError::from)
 }
 
 /// Writes `probes.csv`: header `x,y,z,ux,uy,uz`, one row per probe.
@@ -124,7 +120,7 @@ pub fn write_probes(
     points: &[Point3<f64>],
     values: &[Vector3<f64>],
 ) -> Result<(), RunError> {
-    write_probes_csv(path, points, values).map_err(out_err)
+    Ok(write_probes_csv(path, points, values)?)
 }
 
 /// VTK line cell (a blade's edge in the progressive series).
@@ -152,16 +148,16 @@ pub fn progressive_frame(model: &Model, d: &[f64], edges: &[[Point3<f64>; 2]]) -
 pub fn write_progressive(out: &Path, frames: &[(f64, VtuData)]) -> Result<(), RunError> {
     let dir = out.join("frames");
     std::fs::create_dir_all(&dir)
-        .map_err(|e| RunError::Output(format!("{}: {e}", dir.display())))?;
+        .map_err(|e| crate::io::IoError::os(&dir, "create the folder", e))?;
     let mut series = Vec::with_capacity(frames.len());
     for (k, (t, data)) in frames.iter().enumerate() {
         let name = format!("frames/result_{k:05}.vtu");
-        write_vtu(&out.join(&name), data).map_err(out_err)?;
+        write_vtu(&out.join(&name), data)?;
         series.push((*t, name));
     }
-    write_pvd(&out.join("result.pvd"), &series).map_err(out_err)?;
+    write_pvd(&out.join("result.pvd"), &series)?;
     if let Some((_, last)) = frames.last() {
-        write_vtu(&out.join("result.vtu"), last).map_err(out_err)?;
+        write_vtu(&out.join("result.vtu"), last)?;
     }
     Ok(())
 }

@@ -110,6 +110,11 @@ impl Plan {
                 true,
                 "linear_solver = \"pcg\": CG preconditioned by the last factorisation",
             ),
+            (true, Some(LinearSolver::WarpedPcg { max_cg, .. })) => add(
+                &format!("numeric factorisation when PCG needs more than {max_cg} iterations"),
+                true,
+                "CG preconditioned by the last factorisation warped by the node rotations",
+            ),
             (true, Some(LinearSolver::Direct)) => add(
                 "numeric factorisation every iteration",
                 true,

@@ -30,7 +30,7 @@ pub enum RunError {
         z: f64,
     },
     #[error("writing output: {0}")]
-    Output(String),
+    Output(#[from] crate::io::IoError),
 }
 
 /// Timings of a run (seconds).

@@ -69,6 +69,19 @@ pub enum SceneError {
     },
     #[error("{file}: a static scene has a part that floats free: {part}")]
     FloatingPart { file: String, part: String },
+    #[error("{file}: key `{key}`: {source}")]
+    Surface {
+        file: String,
+        key: String,
+        #[source]
+        source: crate::surface::SurfaceError,
+    },
+    #[error("{file}: {source}")]
+    Blade {
+        file: String,
+        #[source]
+        source: crate::blade::BladeError,
+    },
     #[error("{file}: key `{key}`: {what} is not supported in this build")]
     Unsupported {
         file: String,

@@ -1,11 +1,13 @@
 //! Scene → [`Model`]: the box selections of fixes and tractions on the mesh,
 //! the cut set-up, the model's precompute, and the [`Plan`] of the run.
 
-use crate::cut::{CutSetup, CutSurface, PlanarPatch};
+use crate::blade::Blade;
+use crate::cut::{CutInput, CutSetup, CutSurface};
 use crate::mesh::TetMesh;
 use crate::model::{Model, ModelInput, Traction};
 use crate::plan::Plan;
 use crate::scene::{CutGeometry, FrontMode, Scene, SceneError};
+use crate::surface::TriangleSurface;
 use nalgebra::{Point3, Vector3};
 use std::time::Instant;
 
@@ -112,57 +114,78 @@ impl Scene {
 
     /// The cut set-up of every `[[cut]]` on `mesh` (`None` without cuts).
     ///
-    /// The one place that maps the scene's cuts to the cut module: this build
-    /// sets up planar patches with the front extended to element faces, one
-    /// `snap` for all cuts; a surface, a blade, `front = "tip"`,
-    /// `tip_radius` and differing snaps are refused here as not supported.
+    /// The one place that maps the scene's cuts to the cut module: planar
+    /// patches and triangulated surfaces with their own `snap`, `front` and
+    /// `tip_radius`; a blade in a static scene takes its completed sweep.
+    /// Dynamic scenes with blades run through [`crate::blade`] instead.
     fn setup_cuts(&self, mesh: &TetMesh) -> Result<Option<CutSetup>, SceneError> {
         if self.cuts.is_empty() {
             return Ok(None);
         }
-        let unsupported = |i: usize, key: &str, what: &str| SceneError::Unsupported {
-            file: self.file(),
-            key: format!("cut[{i}].{key}"),
-            what: what.to_string(),
-        };
-        let mut patches: Vec<PlanarPatch> = Vec::with_capacity(self.cuts.len());
+        let file = self.file();
+        let mut surfaces: Vec<Box<dyn CutSurface>> = Vec::with_capacity(self.cuts.len());
         for (i, c) in self.cuts.iter().enumerate() {
-            match &c.geometry {
-                CutGeometry::Patch(p) => patches.push(p.clone()),
-                CutGeometry::Surface(_) => {
-                    return Err(unsupported(i, "surface", "a cut surface from a file"))
+            surfaces.push(match &c.geometry {
+                CutGeometry::Patch(p) => Box::new(p.clone()),
+                CutGeometry::Surface(path) => Box::new(TriangleSurface::read(path).map_err(
+                    |source| SceneError::Surface {
+                        file: file.clone(),
+                        key: format!("cut[{i}].surface"),
+                        source,
+                    },
+                )?),
+                CutGeometry::Blade { .. } if self.is_dynamic() => {
+                    return Err(SceneError::Unsupported {
+                        file,
+                        key: format!("cut[{i}].blade"),
+                        what: "a blade in a dynamic scene through the CLI (the library's blade::run_dynamic runs it)".into(),
+                    })
                 }
-                CutGeometry::Blade { .. } => {
-                    return Err(unsupported(
-                        i,
-                        "blade",
-                        "a blade cutting while the scene runs",
-                    ))
+                CutGeometry::Blade { keyframes } => {
+                    let blade = Blade::new(i, keyframes.clone()).map_err(|source| {
+                        SceneError::Blade {
+                            file: file.clone(),
+                            source,
+                        }
+                    })?;
+                    match blade.swept(f64::INFINITY) {
+                        Some(swept) => swept.into_surface(),
+                        None => {
+                            return Err(SceneError::Blade {
+                                file: file.clone(),
+                                source: crate::blade::BladeError::Misses { index: i },
+                            })
+                        }
+                    }
                 }
-            }
-            if c.front == Some(FrontMode::Tip) {
-                return Err(unsupported(i, "front", "front = \"tip\" (tip enrichment)"));
-            }
-            if c.tip_radius.is_some() {
-                return Err(unsupported(i, "tip_radius", "tip enrichment"));
-            }
-            if c.snap != self.cuts[0].snap {
-                return Err(unsupported(
-                    i,
-                    "snap",
-                    &format!(
-                        "a snap ({}) other than cut[0]'s ({})",
-                        c.snap, self.cuts[0].snap
-                    ),
-                ));
-            }
+            });
         }
-        let surfaces: Vec<&dyn CutSurface> = patches.iter().map(|p| p as &dyn CutSurface).collect();
-        crate::cut::setup_cut(mesh, &surfaces, self.cuts[0].snap)
+        let inputs: Vec<CutInput<'_>> = self
+            .cuts
+            .iter()
+            .zip(&surfaces)
+            .map(|(c, s)| c.input(s.as_ref()))
+            .collect();
+        crate::cut::setup_cut(mesh, &inputs)
             .map(Some)
-            .map_err(|source| SceneError::Cut {
-                file: self.file(),
-                source,
-            })
+            .map_err(|source| SceneError::Cut { file, source })
     }
 }
+
+impl crate::scene::CutSpec {
+    /// The cut module's input for this cut on `surface`.
+    pub fn input<'a>(&self, surface: &'a dyn CutSurface) -> CutInput<'a> {
+        CutInput {
+            surface,
+            snap: self.snap,
+            front: match self.front.unwrap_or(DEFAULT_FRONT) {
+                FrontMode::Tip => crate::cut::FrontMode::Tip,
+                FrontMode::Extend => crate::cut::FrontMode::Extend,
+            },
+            tip_radius: self.tip_radius,
+        }
+    }
+}
+
+/// `front` when a cut does not say (DESIGN.md: "tip").
+pub const DEFAULT_FRONT: FrontMode = FrontMode::Extend;

@@ -403,14 +403,15 @@ impl Pcg {
     }
 
     /// Solves A x = b (A: lower-triangle `values` on `pattern`), preconditioned by
-    /// the factorisation in `precond` (of a nearby matrix: a stale tangent).
+    /// `precond` (z ← P⁻¹ z in place: e.g. the factorisation of a nearby
+    /// matrix, a stale or warped tangent).
     /// `x` is overwritten, starting from zero. Returns whether ‖r‖ ≤ tol ‖b‖ was reached within `max_iterations`.
     #[allow(clippy::too_many_arguments)]
     pub fn solve(
         &mut self,
         pattern: &Pattern,
         values: &[f64],
-        precond: &mut Cholesky,
+        mut precond: impl FnMut(&mut [f64]),
         b: &[f64],
         x: &mut [f64],
         tol: f64,
@@ -424,7 +425,7 @@ impl Pcg {
         }
         self.r.copy_from_slice(b);
         self.z.copy_from_slice(b);
-        precond.solve_in_place(&mut self.z);
+        precond(&mut self.z);
         self.p.copy_from_slice(&self.z);
         let mut rz = dot(&self.r, &self.z);
         for _ in 0..max_iterations {
@@ -444,7 +445,7 @@ impl Pcg {
                 return true;
             }
             self.z.copy_from_slice(&self.r);
-            precond.solve_in_place(&mut self.z);
+            precond(&mut self.z);
             let rz_new = dot(&self.r, &self.z);
             let beta = rz_new / rz;
             rz = rz_new;

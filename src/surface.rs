@@ -584,6 +584,36 @@ mod tests {
     }
 
     #[test]
+    fn a_closed_surface_has_the_signed_distance_inside_and_out() {
+        // Octahedron |x| + |y| + |z| = 1, outward normals: negative inside.
+        let v: Vec<Point3<f64>> = [
+            [1.0, 0.0, 0.0],
+            [-1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, -1.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [0.0, 0.0, -1.0],
+        ]
+        .iter()
+        .map(|c| Point3::from(*c))
+        .collect();
+        let mut tris = Vec::new();
+        for (x, y) in [(0, 2), (2, 1), (1, 3), (3, 0)] {
+            tris.push([x, y, 4]);
+            tris.push([y, x, 5]);
+        }
+        let s = TriangleSurface::new(v, tris, Path::new("octahedron")).unwrap();
+        assert!(s.boundary().is_empty());
+        let d = 1.0 / 3f64.sqrt();
+        assert!((s.level_set(&Point3::origin()) + d).abs() < 1e-15);
+        assert!((s.level_set(&Point3::new(1.0, 1.0, 1.0)) - 2.0 * d).abs() < 1e-15);
+        // Beyond a vertex and an edge: distance to them, positive.
+        assert!((s.level_set(&Point3::new(2.0, 0.0, 0.0)) - 1.0).abs() < 1e-15);
+        assert!((s.level_set(&Point3::new(1.0, 1.0, 0.0)) - 0.5f64.sqrt()).abs() < 1e-15);
+        assert!(s.level_set(&Point3::new(0.99, 0.0, 0.0)) < 0.0);
+    }
+
+    #[test]
     fn non_manifold_and_empty_surfaces_are_errors() {
         let v = vec![
             Point3::new(0.0, 0.0, 0.0),

@@ -137,11 +137,19 @@ fn a_corotational_step_allocates_nothing_and_factorises_once_per_iteration() {
 
 #[test]
 fn a_pcg_step_allocates_nothing() {
+    for warped in [false, true] {
+        pcg_step_allocates_nothing(warped);
+    }
+}
+
+fn pcg_step_allocates_nothing(warped: bool) {
     let (model, options) = case("bend_dynamic.toml", "corotational");
+    let (tolerance, max_cg) = (1e-8, 25);
     let options = DynamicOptions {
-        linear_solver: LinearSolver::Pcg {
-            tolerance: 1e-8,
-            max_cg: 25,
+        linear_solver: if warped {
+            LinearSolver::WarpedPcg { tolerance, max_cg }
+        } else {
+            LinearSolver::Pcg { tolerance, max_cg }
         },
         ..options
     };
@@ -151,7 +159,7 @@ fn a_pcg_step_allocates_nothing() {
     let factorisations: usize = reports.iter().map(|r| r.factorisations).sum();
     let newton: usize = reports.iter().map(|r| r.iterations).sum();
     println!(
-        "PCG: {newton} Newton, {cg} CG iterations, {factorisations} factorisations in 21 steps"
+        "PCG (warped: {warped}): {newton} Newton, {cg} CG iterations, {factorisations} factorisations in 21 steps"
     );
     // CG replaces most factorisations.
     assert!(

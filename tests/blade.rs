@@ -8,7 +8,7 @@ mod common;
 use common::{bar, case, model, relative_difference, solve};
 use nalgebra::{Point3, Vector3};
 use xfem_cut::blade::{run_dynamic, Blade, BladeError, CutItem, CutSet};
-use xfem_cut::cut::{setup_cut, PlanarPatch, DEFAULT_SNAP};
+use xfem_cut::cut::{setup_cut, CutInput, PlanarPatch, DEFAULT_SNAP};
 use xfem_cut::dynamics::{DynamicOptions, MassKind};
 use xfem_cut::io::{read_pvd, read_vtu};
 use xfem_cut::locate::Locator;
@@ -35,6 +35,7 @@ fn one_blade(b: Blade) -> CutSet {
     CutSet {
         items: vec![CutItem::Blade(b)],
         snap: DEFAULT_SNAP,
+        front: xfem_cut::cut::FrontMode::Extend,
     }
 }
 
@@ -42,7 +43,7 @@ fn one_blade(b: Blade) -> CutSet {
 fn a_static_blade_takes_the_completed_sweep_and_equals_the_patch() {
     let mesh = bar([3, 3, 6]);
     let g = Vector3::new(-9.81, 0.0, 0.0);
-    let reference = setup_cut(&mesh, &[&patch()], DEFAULT_SNAP).unwrap();
+    let reference = setup_cut(&mesh, &[CutInput::extend(&patch(), DEFAULT_SNAP)]).unwrap();
     let m_ref = model(&mesh, Some(reference), Formulation::Linear, g, None, false).unwrap();
     let d_ref = solve(&m_ref);
     let cuts = one_blade(blade(0.1, 0.6));
@@ -122,21 +123,12 @@ fn cut_events_keep_both_energies_and_refactorise_only_there() {
         }
         // The steps the sweep index let pass could not have changed the set-up:
         // the events are those of a full check after every step.
-        let mut full = Vec::new();
-        let mut last = cuts.setup_at(&mesh, 0.0).unwrap();
-        for k in 1..=opts.steps {
-            let t = k as f64 * opts.dt;
-            let s = cuts.setup_at(&mesh, t).unwrap();
-            if !xfem_cut::blade::same_setup(last.as_ref(), s.as_ref()) {
-                full.push(k);
-            }
-            last = s;
-        }
+        let full = full_check_events(&cuts, &mesh, &opts);
         let got: Vec<usize> = sw.events.iter().map(|e| e.step).collect();
         assert_eq!(got, full, "events vs a full check after every step");
         assert!(sw.checks < opts.steps);
         // The completed sweep is the patch's set-up.
-        let full = setup_cut(&mesh, &[&patch()], DEFAULT_SNAP).unwrap();
+        let full = setup_cut(&mesh, &[CutInput::extend(&patch(), DEFAULT_SNAP)]).unwrap();
         assert_eq!(run.model.cut.as_ref().unwrap().enriched, full.enriched);
     }
 }
@@ -184,9 +176,30 @@ fn bad_blades_are_errors_naming_the_key() {
             CutItem::Blade(Blade::straight(1, p.origin, p.origin + p.u, p.v, 0.0, 1.0).unwrap()),
         ],
         snap: DEFAULT_SNAP,
+        front: xfem_cut::cut::FrontMode::Extend,
     };
     let e = cuts.completed(&mesh).expect_err("meets").to_string();
     assert!(e.contains("cut[1]") && e.contains("meets cut[0]"), "{e}");
+}
+
+/// The steps after which a full set-up (every step, no sweep index) changes.
+fn full_check_events(
+    cuts: &CutSet,
+    mesh: &xfem_cut::mesh::TetMesh,
+    opts: &DynamicOptions,
+) -> Vec<usize> {
+    let mut full = Vec::new();
+    let mut last = cuts.setup_at(mesh, 0.0).unwrap();
+    let mut t = 0.0;
+    for k in 1..=opts.steps {
+        t += opts.dt;
+        let s = cuts.setup_at(mesh, t).unwrap();
+        if !xfem_cut::blade::same_setup(last.as_ref(), s.as_ref()) {
+            full.push(k);
+        }
+        last = s;
+    }
+    full
 }
 
 /// Jump of the displacement across the cut at x: + side minus − side.
@@ -198,8 +211,7 @@ fn opening(m: &xfem_cut::model::Model, d: &[f64], x: Point3<f64>) -> f64 {
 
 #[test]
 fn cut_progressive_settles_to_the_static_full_cut() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("cases/progressive/cut_progressive.toml");
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/cut_progressive.toml");
     let (scene, cuts) = case::load(&path);
     let mesh = scene.mesh(0).unwrap();
     let Analysis::Dynamic { options, .. } = scene.analysis else {
@@ -244,6 +256,12 @@ fn cut_progressive_settles_to_the_static_full_cut() {
     );
     let sw = &run.sweep;
     println!("cut_progressive: {sw}");
+    let got: Vec<usize> = sw.events.iter().map(|e| e.step).collect();
+    assert_eq!(
+        got,
+        full_check_events(&cuts, &mesh, &options),
+        "events vs a full check after every step"
+    );
     assert!(!sw.events.is_empty());
     for e in &sw.events {
         let dk =
@@ -498,6 +516,7 @@ fn free_slice_made_by_two_blades_falls_with_g_after_the_second() {
             ),
         ],
         snap: DEFAULT_SNAP,
+        front: xfem_cut::cut::FrontMode::Extend,
     };
     let g = 9.81;
     let build = |cut| {
@@ -546,6 +565,12 @@ fn free_slice_made_by_two_blades_falls_with_g_after_the_second() {
     })
     .unwrap();
     println!("free_slice by two blades: {}", run.sweep);
+    let got: Vec<usize> = run.sweep.events.iter().map(|e| e.step).collect();
+    assert_eq!(
+        got,
+        full_check_events(&cuts, &mesh, &opts),
+        "events vs a full check after every step"
+    );
     let freed_at = before_second.unwrap();
     assert!(
         (0.1..=0.2 + opts.dt).contains(&freed_at),
@@ -562,4 +587,57 @@ fn free_slice_made_by_two_blades_falls_with_g_after_the_second() {
         "{a:?}"
     );
     assert!(u_low.norm() < 1e-2 * fall && u_high.norm() < 1e-2 * fall);
+}
+
+#[test]
+fn a_tip_front_follows_the_blade_and_the_cut_is_closed_ahead_of_it() {
+    // The front (the blade's edge, along x) moves through the bar's elements in y.
+    let mesh = bar([3, 3, 6]);
+    let p = patch();
+    let (start, end) = (0.02, 0.3);
+    let blade = Blade::straight(0, p.origin, p.origin + p.u, p.v, start, end).unwrap();
+    let cuts = CutSet {
+        items: vec![CutItem::Blade(blade)],
+        snap: DEFAULT_SNAP,
+        front: xfem_cut::cut::FrontMode::Tip,
+    };
+    let g = Vector3::new(-9.81, 0.0, 0.0);
+    let build = |cut| model(&mesh, cut, Formulation::Linear, g, None, true);
+    let opts = DynamicOptions {
+        dt: 0.01,
+        steps: 20,
+        mass: MassKind::Consistent,
+        ..DynamicOptions::default()
+    };
+    let edge_y = |t: f64| -0.5 + 2.0 * (t - start) / (end - start);
+    let (mut worst_ahead, mut behind_max): (f64, f64) = (0.0, 0.0);
+    let mut tip_steps = 0;
+    let run = run_dynamic(&cuts, &mesh, &build, opts, |_, m, nm| {
+        let s = &nm.state;
+        assert!(s.d.iter().all(|x| x.is_finite()));
+        let y = edge_y(s.time);
+        if m.cut.as_ref().is_some_and(|c| c.n_tip > 0) && y > 0.3 && y < 0.9 {
+            tip_steps += 1;
+            let ahead = opening(m, &s.d, Point3::new(0.2, y + 0.08, p.origin.z));
+            let behind = opening(m, &s.d, Point3::new(0.2, y - 0.3, p.origin.z));
+            worst_ahead = worst_ahead.max(ahead);
+            behind_max = behind_max.max(behind);
+        }
+    })
+    .unwrap();
+    let sw = &run.sweep;
+    let jump = sw
+        .events
+        .iter()
+        .map(|e| {
+            let total = |x: &xfem_cut::dynamics::Energies| x.kinetic + x.strain;
+            (total(&e.after) - total(&e.before)).abs() / total(&e.before).max(f64::MIN_POSITIVE)
+        })
+        .fold(0.0, f64::max);
+    println!("tip front: {sw}; {tip_steps} steps with tip nodes checked: opening ahead ≤ {worst_ahead:e}, behind up to {behind_max:e}; largest (kinetic + strain) change at an event {jump:.2e} (tip blocks kept, tip → Heaviside DOFs start at zero: no projection)");
+    assert!(tip_steps >= 3, "{tip_steps}");
+    assert!(
+        behind_max > 0.0 && worst_ahead <= 1e-10 * behind_max,
+        "{worst_ahead:e} vs {behind_max:e}"
+    );
 }

@@ -219,51 +219,45 @@ fn cut_keys_are_checked_per_cut() {
 }
 
 #[test]
-fn cut_kinds_this_build_cannot_solve_are_refused_clearly() {
+fn cut_kinds_run_or_are_refused_clearly() {
     let dir = tempfile::tempdir().unwrap();
     let blade = "blade = [[0.0, -0.01, 0.1], [0.0, 0.07, 0.1]]";
     let far = "origin = [0.0, 0.0, 0.1875]\nu = [0.015, 0.0, 0.0]\nv = [0.0, 0.06, 0.0]";
     let stl = dir.path().join("incision.stl");
     std::fs::write(&stl, "solid s\nendsolid s\n").unwrap();
+    let dynamic = |cut: &str| {
+        with_cut(cut).replace(
+            "type = \"static\"",
+            "type = \"dynamic\"\ndt = 0.01\nsteps = 2",
+        )
+    };
     assert_refused(&[
         (
             with_cut(&format!("surface = \"{}\"", stl.display())),
             "cut[0].surface",
-            "not supported in this build",
+            "no triangles",
         ),
         (
-            with_cut(&format!(
+            dynamic(&format!(
                 "{blade}\ntravel = [0.015, 0.0, 0.0]\nstart = 0.0\nend = 0.1"
             )),
             "cut[0].blade",
             "not supported in this build",
         ),
-        (
-            with_cut(&format!("{PATCH}\nfront = \"tip\"")),
-            "cut[0].front",
-            "not supported in this build",
-        ),
-        (
-            with_cut(&format!("{PATCH}\ntip_radius = 0.01")),
-            "cut[0].tip_radius",
-            "not supported in this build",
-        ),
-        // Per-cut snap: this build's cut set-up takes one snap for all cuts (it took the last cut's for all).
-        (
-            with_cut(&format!(
-                "{PATCH}\nsnap = 0.01\n[[cut]]\n{far}\nsnap = 0.02"
-            )),
-            "cut[1].snap",
-            "not supported in this build",
-        ),
     ]);
-    // front = "extend" is today's behaviour; two cuts with the same snap run.
-    let text = with_cut(&format!(
-        "{PATCH}\nfront = \"extend\"\nsnap = 0.01\n[[cut]]\n{far}\nsnap = 0.01"
-    ))
-    .replace("levels = [[1, 2, 4]]", "levels = [[1, 2, 8]]");
-    let (ok, err, _dir) = run_case(&text);
-    assert!(ok, "{err}");
+    // Each runs: the seed's front extended or tip-enriched, per-cut snaps, a
+    // static blade (its completed sweep).
+    for cut in [
+        format!("{PATCH}\nfront = \"extend\"\nsnap = 0.01\n[[cut]]\n{far}\nsnap = 0.01"),
+        format!("{PATCH}\nfront = \"tip\""),
+        format!("{PATCH}\ntip_radius = 0.01"),
+        format!("{PATCH}\nsnap = 0.01\n[[cut]]\n{far}\nsnap = 0.02"),
+        format!("{blade}\ntravel = [0.015, 0.0, 0.0]\nstart = 0.0\nend = 0.1"),
+    ] {
+        let text = with_cut(&cut).replace("levels = [[1, 2, 4]]", "levels = [[1, 2, 8]]");
+        let (ok, err, _dir) = run_case(&text);
+        assert!(ok, "{cut}: {err}");
+    }
 }
 
 #[test]
@@ -338,4 +332,32 @@ fn a_missing_case_file_names_the_os_error() {
         err.contains("/no/such/case.toml: cannot read: No such file"),
         "{err}"
     );
+}
+
+#[test]
+fn a_dynamic_run_writes_a_series_that_reads_back() {
+    let text = GOOD.replace(
+        "type = \"static\"",
+        "type = \"dynamic\"\ndt = 0.01\nsteps = 7\noutput_every = 3",
+    );
+    let (ok, err, dir) = run_case(&text);
+    assert!(ok, "{err}");
+    let out = dir.path().join("out");
+    // Frames: the initial state, steps 3 and 6, and the last step.
+    let series = xfem_cut::io::read_pvd(&out.join("result.pvd")).unwrap();
+    let times: Vec<f64> = series.iter().map(|(t, _)| *t).collect();
+    assert_eq!(times.len(), 4, "{times:?}");
+    assert!((times[3] - 0.07).abs() < 1e-12, "{times:?}");
+    let last = xfem_cut::io::read_vtu(&out.join(&series[3].1)).unwrap();
+    let result = xfem_cut::io::read_vtu(&out.join("result.vtu")).unwrap();
+    assert_eq!(last, result, "the last frame is the result");
+    let first = xfem_cut::io::read_vtu(&out.join(&series[0].1)).unwrap();
+    assert!(
+        first.point_data["u"].1.iter().all(|&u| u == 0.0),
+        "starts at rest"
+    );
+    let (points, disp) = xfem_cut::io::read_probes_csv(&out.join("probes.csv")).unwrap();
+    assert_eq!(points.len(), 2);
+    assert_eq!(points[1], nalgebra::Point3::new(0.03, 0.06, 0.2));
+    assert!(disp[1].x > 0.0, "gravity in +x moves the tip in +x");
 }

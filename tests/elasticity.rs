@@ -594,7 +594,7 @@ fn tangent_times(model: &Model, d: &[f64], exact: bool, z_free: &[f64]) -> Vec<f
 
 #[test]
 fn exact_corotational_tangent_is_the_derivative_of_the_forces() {
-    use xfem_cut::cut::{setup_cut, PlanarPatch, DEFAULT_SNAP};
+    use xfem_cut::cut::{setup_cut, CutInput, PlanarPatch, DEFAULT_SNAP};
     let patch = PlanarPatch {
         origin: Point3::new(-0.1, -0.1, 0.43),
         u: Vector3::new(1.2, 0.1, 0.05),
@@ -605,7 +605,7 @@ fn exact_corotational_tangent_is_the_derivative_of_the_forces() {
         .map(|(tet10, cut)| {
             let m = distorted_cube(3);
             let m = if tet10 { m.to_tet10() } else { m };
-            let c = cut.then(|| setup_cut(&m, &[&patch], DEFAULT_SNAP).unwrap());
+            let c = cut.then(|| setup_cut(&m, &[CutInput::extend(&patch, DEFAULT_SNAP)]).unwrap());
             (m, c)
         })
     {

@@ -8,7 +8,7 @@ mod common;
 use common::{bar, case, model, relative_difference, solve};
 use nalgebra::{Point3, Vector3};
 use xfem_cut::blade::same_setup;
-use xfem_cut::cut::{setup_cut, CutSurface, PlanarPatch, DEFAULT_SNAP};
+use xfem_cut::cut::{setup_cut, CutInput, CutSurface, PlanarPatch, DEFAULT_SNAP};
 use xfem_cut::dynamics::{DynamicOptions, Newmark};
 use xfem_cut::locate::Locator;
 use xfem_cut::model::{Formulation, Model};
@@ -71,7 +71,7 @@ fn gmsh_triangles(v: &[Point3<f64>], tris: &[[usize; 3]]) -> String {
 fn a_planar_patch_written_as_triangles_equals_the_patch() {
     let mesh = bar([3, 3, 6]);
     let p = patch();
-    let reference = setup_cut(&mesh, &[&p], DEFAULT_SNAP).unwrap();
+    let reference = setup_cut(&mesh, &[CutInput::extend(&p, DEFAULT_SNAP)]).unwrap();
     assert!(
         reference.n_partial() > 0,
         "the front must lie inside elements"
@@ -116,7 +116,7 @@ fn a_planar_patch_written_as_triangles_equals_the_patch() {
             s.boundary().len(),
             if s.n_triangles() == 2 { 4 } else { 16 }
         );
-        let setup = setup_cut(&mesh, &[&s], DEFAULT_SNAP).unwrap();
+        let setup = setup_cut(&mesh, &[CutInput::extend(&s, DEFAULT_SNAP)]).unwrap();
         let phi = setup
             .phi
             .iter()
@@ -194,7 +194,7 @@ fn a_curved_incision_runs_static_and_dynamic_linear_and_corotational() {
         let got = s.level_set(&Point3::new(x, 0.4, z));
         assert!((got - want).abs() <= 2e-3, "({x}, {z}): {got} vs {want}");
     }
-    let setup = setup_cut(&mesh, &[&s], DEFAULT_SNAP).unwrap();
+    let setup = setup_cut(&mesh, &[CutInput::extend(&s, DEFAULT_SNAP)]).unwrap();
     assert!(setup.n_cut() > 0 && setup.n_enriched > 0);
     println!(
         "arc: {} cut elements ({} with the front), {} enriched nodes",
@@ -273,8 +273,7 @@ fn a_curved_incision_runs_static_and_dynamic_linear_and_corotational() {
 
 #[test]
 fn the_gmsh_curved_incision_case_runs_static_linear_and_corotational() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("cases/progressive/curved_incision.toml");
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/curved_incision.toml");
     let (mut scene, cuts) = case::load(&path);
     let xfem_cut::blade::CutItem::Surface(surface) = &cuts.items[0] else {
         panic!("a surface cut")

@@ -199,7 +199,7 @@ fn patch_test_through_cut_elements_translates_the_upper_part_exactly() {
 #[test]
 fn tet4_volume_ratios_equal_sub_tet_quadrature() {
     use xfem_cut::assembly::{evaluate, Request, Rotations, Workspace};
-    use xfem_cut::cut::{setup_cut, PlanarPatch, DEFAULT_SNAP};
+    use xfem_cut::cut::{setup_cut, CutInput, PlanarPatch, DEFAULT_SNAP};
     use xfem_cut::material::Material;
     use xfem_cut::mesh::box_mesh;
     use xfem_cut::model::{Formulation, Integration, Model, ModelInput};
@@ -210,7 +210,7 @@ fn tet4_volume_ratios_equal_sub_tet_quadrature() {
         u: Vector3::new(0.02, 0.0, 0.015),
         v: Vector3::new(0.0, 0.06, 0.0),
     };
-    let cut = setup_cut(&mesh, &[&patch], DEFAULT_SNAP).unwrap();
+    let cut = setup_cut(&mesh, &[CutInput::extend(&patch, DEFAULT_SNAP)]).unwrap();
     let fixed: Vec<_> = mesh
         .nodes
         .iter()
@@ -374,7 +374,7 @@ fn ten_thousand_corotational_steps_of_the_cut_bend_beam_stay_bounded() {
 #[test]
 fn the_enriched_field_is_conforming_around_a_front_inside_elements() {
     use std::collections::HashMap;
-    use xfem_cut::cut::{setup_cut, CutSurface, PlanarPatch, DEFAULT_SNAP};
+    use xfem_cut::cut::{setup_cut, CutInput, CutSurface, PlanarPatch, DEFAULT_SNAP};
     use xfem_cut::material::Material;
     use xfem_cut::mesh::box_mesh;
     use xfem_cut::model::{Formulation, Model, ModelInput};
@@ -389,7 +389,7 @@ fn the_enriched_field_is_conforming_around_a_front_inside_elements() {
         if tet10 {
             mesh = mesh.to_tet10();
         }
-        let cut = setup_cut(&mesh, &[&patch], DEFAULT_SNAP).unwrap();
+        let cut = setup_cut(&mesh, &[CutInput::extend(&patch, DEFAULT_SNAP)]).unwrap();
         assert!(cut.n_partial() > 0);
         let model = Model::build(ModelInput {
             mesh: mesh.clone(),

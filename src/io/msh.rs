@@ -79,11 +79,15 @@ const GMSH_TET4: [usize; 4] = [0, 1, 2, 3];
 /// With dense tags (1..N without gaps) gmsh does not need to store them and
 /// `mshio` assumes they run in file order, as gmsh writes them.
 pub fn read_msh(path: &Path) -> Result<MshMesh, IoError> {
-    let bytes = read_bytes(path)?;
+    parse_msh(&read_bytes(path)?, path)
+}
+
+/// [`read_msh`] on the bytes of a file already read; `path` names it in errors.
+pub fn parse_msh(bytes: &[u8], path: &Path) -> Result<MshMesh, IoError> {
     // mshio is a third-party parser of untrusted bytes: a panic in it (say, an
     // arithmetic overflow on a hostile header) becomes an error naming the file.
     let parsed = std::panic::catch_unwind(|| {
-        mshio::parse_msh_bytes(&bytes).map_err(|e| {
+        mshio::parse_msh_bytes(bytes).map_err(|e| {
             let text = e.to_string();
             let first = text.lines().find(|l| !l.trim().is_empty()).unwrap_or("");
             format!("not a readable MSH 4.1 file: {}", first.trim())
@@ -240,7 +244,7 @@ pub fn read_msh(path: &Path) -> Result<MshMesh, IoError> {
     Ok(MshMesh {
         mesh,
         node_index,
-        physical_names: physical_names(path, &bytes)?,
+        physical_names: physical_names(path, bytes)?,
         element_entity,
         entity_physical,
     })

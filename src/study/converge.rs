@@ -7,6 +7,8 @@
 //! uncut gmsh meshes, each with Tet4 and Tet10.
 
 use crate::cut::{CutSurface, PlanarPatch};
+use crate::io::csv::{read_rows, sci, write_rows};
+use crate::io::IoError;
 use crate::locate::Locator;
 use crate::mesh::ElementKind;
 use crate::model::Formulation;
@@ -14,76 +16,90 @@ use crate::run::{evaluate_at, solve_scene};
 use crate::scene::{BodyGeometry, Scene};
 use crate::study::reference::{out_dir, read_reference, Reference};
 use crate::study::verify::{l2_error, Field};
+use crate::study::StudyError;
 use nalgebra::{Point3, Vector3};
-use std::fmt::Write as _;
+use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// One run of the study.
-#[derive(Debug, Clone)]
+/// One run of the study: a row of `convergence.csv` (header [`CSV_HEADER`]).
+#[derive(Debug, Clone, Serialize)]
 pub struct Row {
     pub case: String,
     pub variant: String,
     pub element: &'static str,
     pub level: usize,
     /// Characteristic size: (volume / elements)^(1/3) of the mesh.
+    #[serde(serialize_with = "sci")]
     pub h: f64,
     pub elements: usize,
     pub dofs: usize,
     /// Cut set-up, element data, pattern and symbolic factorisation (s).
+    #[serde(rename = "precompute_s", serialize_with = "sci")]
     pub precompute: f64,
     /// Numeric factorisation and solve (s).
+    #[serde(rename = "solve_s", serialize_with = "sci")]
     pub solve: f64,
+    #[serde(rename = "l2_rel", serialize_with = "sci")]
     pub l2: f64,
     /// Relative error of the crack opening [u] = u(+) − u(−) sampled on the
-    /// cut patch (NaN without a cut).
+    /// cut patch (NaN without a cut; rows of the first layout lack it).
+    #[serde(rename = "opening_rel", serialize_with = "sci")]
     pub opening: f64,
     /// Largest probe error relative to the largest probe displacement (NaN without probes).
+    #[serde(rename = "probe_rel", serialize_with = "sci")]
     pub probes: f64,
 }
 
 pub const CSV_HEADER: &str =
     "case,variant,element,level,h,elements,dofs,precompute_s,solve_s,l2_rel,opening_rel,probe_rel";
 
-impl Row {
-    pub fn csv(&self) -> String {
-        format!(
-            "{},{},{},{},{:e},{},{},{:e},{:e},{:e},{:e},{:e}",
-            self.case,
-            self.variant,
-            self.element,
-            self.level,
-            self.h,
-            self.elements,
-            self.dofs,
-            self.precompute,
-            self.solve,
-            self.l2,
-            self.opening,
-            self.probes
-        )
-    }
+/// A row as read, before its element name is checked (`Row` holds a `&'static str`).
+#[derive(Deserialize)]
+struct RowRecord {
+    case: String,
+    variant: String,
+    element: String,
+    level: usize,
+    h: f64,
+    elements: usize,
+    dofs: usize,
+    precompute_s: f64,
+    solve_s: f64,
+    l2_rel: f64,
+    /// Rows of the first layout (10 fields) lack these two.
+    opening_rel: Option<f64>,
+    probe_rel: Option<f64>,
+}
 
-    pub fn parse(line: &str) -> Option<Row> {
-        let f: Vec<&str> = line.split(',').collect();
-        // Rows of the first layout (10 fields) had no opening and probe errors.
-        if f.len() != 10 && f.len() != 12 {
-            return None;
-        }
-        let extra = |k: usize| f.get(k).map_or(Some(f64::NAN), |v| v.parse().ok());
-        Some(Row {
-            case: f[0].to_string(),
-            variant: f[1].to_string(),
-            element: if f[2] == "tet10" { "tet10" } else { "tet4" },
-            level: f[3].parse().ok()?,
-            h: f[4].parse().ok()?,
-            elements: f[5].parse().ok()?,
-            dofs: f[6].parse().ok()?,
-            precompute: f[7].parse().ok()?,
-            solve: f[8].parse().ok()?,
-            l2: f[9].parse().ok()?,
-            opening: extra(10)?,
-            probes: extra(11)?,
+impl<'de> Deserialize<'de> for Row {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Row, D::Error> {
+        Row::try_from(RowRecord::deserialize(d)?).map_err(serde::de::Error::custom)
+    }
+}
+
+impl TryFrom<RowRecord> for Row {
+    type Error = String;
+
+    fn try_from(r: RowRecord) -> Result<Row, String> {
+        let element = match r.element.as_str() {
+            "tet4" => "tet4",
+            "tet10" => "tet10",
+            other => return Err(format!("element must be tet4 or tet10, got {other:?}")),
+        };
+        Ok(Row {
+            case: r.case,
+            variant: r.variant,
+            element,
+            level: r.level,
+            h: r.h,
+            elements: r.elements,
+            dofs: r.dofs,
+            precompute: r.precompute_s,
+            solve: r.solve_s,
+            l2: r.l2_rel,
+            opening: r.opening_rel.unwrap_or(f64::NAN),
+            probes: r.probe_rel.unwrap_or(f64::NAN),
         })
     }
 }
@@ -121,28 +137,29 @@ fn corotational_reference(
     family: &str,
     max_dofs: usize,
     progress: &mut impl FnMut(&str),
-) -> Result<(Reference, usize), String> {
+) -> Result<(Reference, usize), StudyError> {
     let meshes = family_meshes(family);
     let mut chosen = None;
     for (k, path) in meshes.iter().enumerate() {
-        let m = base.read_mesh(path).map_err(|e| e.to_string())?;
+        let m = base.read_mesh(path)?;
         if 3 * m.to_tet10().n_nodes() <= max_dofs {
             chosen = Some(k);
         }
     }
     let level = chosen.filter(|&k| k >= 2).ok_or_else(|| {
-        format!(
+        StudyError::Precondition(format!(
             "{}: the corotational study needs a pre-cut level ≥ L2 within {max_dofs} DOFs for its reference (raise --max-dofs or run `make refs`)",
             base.name
-        )
+        ))
     })?;
     let mut scene = base.clone();
     scene.cuts.clear();
     scene.element = ElementKind::Tet10;
     scene.formulation = Formulation::Corotational;
     let t0 = Instant::now();
-    let result = solve_scene(&scene, level, Some(&meshes[level]), false)
-        .map_err(|e| format!("{}: corotational reference: {e}", base.name))?;
+    let result = solve_scene(&scene, level, Some(&meshes[level]), false).map_err(|e| {
+        StudyError::from(e).during(format!("{}: corotational reference", base.name))
+    })?;
     let u = (0..result.model.mesh.n_nodes())
         .map(|i| result.model.node_displacement(&result.d, i, 0))
         .collect();
@@ -172,22 +189,19 @@ pub fn converge_case(
     max_dofs: usize,
     corotational: bool,
     mut progress: impl FnMut(&str),
-) -> Result<Vec<Row>, String> {
-    let base = Scene::load(case_path).map_err(|e| e.to_string())?;
+) -> Result<Vec<Row>, StudyError> {
+    let base = Scene::load(case_path)?;
     let (family, ref_path) = reference_of(&base.name).ok_or_else(|| {
-        format!(
+        StudyError::Precondition(format!(
             "{}: no fine reference in refs/out/{}/*_fine/p2.vtu (run `make refs`)",
             case_path.display(),
             base.name
-        )
+        ))
     })?;
     let (reference, below) = if corotational {
         corotational_reference(&base, &family, max_dofs, &mut progress)?
     } else {
-        (
-            read_reference(&ref_path).map_err(|e| e.to_string())?,
-            usize::MAX,
-        )
+        (read_reference(&ref_path)?, usize::MAX)
     };
     let field = Field {
         mesh: &reference.mesh,
@@ -264,8 +278,8 @@ pub fn converge_case(
         // Skip runs beyond the DOF budget (estimated from the mesh before solving).
         let t0 = Instant::now();
         let m = match &mesh {
-            Some(p) => scene.read_mesh(p).map_err(|e| e.to_string())?,
-            None => scene.mesh(level).map_err(|e| e.to_string())?,
+            Some(p) => scene.read_mesh(p)?,
+            None => scene.mesh(level)?,
         };
         let estimate = 3 * if element == ElementKind::Tet10 {
             m.to_tet10().n_nodes()
@@ -280,15 +294,15 @@ pub fn converge_case(
             ));
             continue;
         }
-        let result =
-            solve_scene(&scene, level, mesh.as_deref(), false).map_err(|e| e.to_string())?;
+        let result = solve_scene(&scene, level, mesh.as_deref(), false)?;
         let wall = t0.elapsed().as_secs_f64();
         let t = result.timings;
         // Mesh reading is not precompute (FEniCSx times exclude it too).
         let precompute = t.cut + t.model + t.symbolic;
         let locator = Locator::new(&result.model.mesh);
-        let err = l2_error(&field, &result.model, &result.d, &locator)
-            .map_err(|e| format!("{}: {variant} L{level}: {e}", base.name))?;
+        let err = l2_error(&field, &result.model, &result.d, &locator).map_err(|e| {
+            StudyError::from(e).during(format!("{}: {variant} L{level}", base.name))
+        })?;
         let ours = |x: &Point3<f64>| evaluate_at(&result.model, &locator, &result.d, x);
         let opening = relative_error(crack.iter().map(|(x, jump)| {
             let mine = ours(&(x + offset))
@@ -359,25 +373,17 @@ fn relative_error(pairs: impl Iterator<Item = (Option<Vector3<f64>>, Vector3<f64
     }
 }
 
-/// Writes rows as CSV (whole or not at all).
-pub fn write_csv(path: &Path, rows: &[Row]) -> std::io::Result<()> {
-    let mut s = String::from(CSV_HEADER);
-    s.push('\n');
-    for r in rows {
-        let _ = writeln!(s, "{}", r.csv());
+/// Writes rows as CSV (whole or not at all), creating the folder.
+pub fn write_csv(path: &Path, rows: &[Row]) -> Result<(), IoError> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| IoError::os(dir, "create the folder", e))?;
     }
-    if let Some(dir) = path.parent() {
-        std::fs::create_dir_all(dir)?;
-    }
-    let tmp = path.with_extension("csv.tmp");
-    std::fs::write(&tmp, s)?;
-    std::fs::rename(tmp, path)
+    write_rows(path, rows)
 }
 
-/// Reads rows written by [`write_csv`].
-pub fn read_csv(path: &Path) -> std::io::Result<Vec<Row>> {
-    let text = std::fs::read_to_string(path)?;
-    Ok(text.lines().skip(1).filter_map(Row::parse).collect())
+/// Reads rows written by [`write_csv`] (and rows of the first layout, 10 fields).
+pub fn read_csv(path: &Path) -> Result<Vec<Row>, IoError> {
+    read_rows(path, true)
 }
 
 #[cfg(test)]
@@ -386,13 +392,49 @@ mod tests {
 
     #[test]
     fn rows_round_trip_and_old_rows_read_without_the_new_errors() {
-        let line = "gravity,X-FEM unstructured,tet10,2,3e-3,100,300,1e-2,2e-2,5e-3,4e-2,6e-3";
-        let r = Row::parse(line).unwrap();
-        assert_eq!((r.opening, r.probes), (4e-2, 6e-3));
-        assert_eq!(Row::parse(&r.csv()).unwrap().csv(), r.csv());
-        let old = Row::parse("gravity,FEM pre-cut,tet4,0,3e-3,100,300,1e-2,2e-2,5e-3").unwrap();
-        assert!(old.opening.is_nan() && old.probes.is_nan());
-        assert!(Row::parse("gravity,FEM pre-cut,tet4").is_none());
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("c.csv");
+        let text = format!(
+            "{CSV_HEADER}\ngravity,X-FEM unstructured,tet10,2,3e-3,100,300,1e-2,2e-2,5e-3,4e-2,6e-3\ngravity,FEM pre-cut,tet4,0,3e-3,100,300,1e-2,2e-2,5e-3\n"
+        );
+        std::fs::write(&p, &text).unwrap();
+        let rows = read_csv(&p).unwrap();
+        assert_eq!((rows[0].opening, rows[0].probes), (4e-2, 6e-3));
+        assert!(rows[1].opening.is_nan() && rows[1].probes.is_nan());
+        write_csv(&p, &rows[..1]).unwrap();
+        let written = std::fs::read_to_string(&p).unwrap();
+        assert_eq!(
+            written,
+            text.lines()
+                .take(2)
+                .map(|l| format!("{l}\n"))
+                .collect::<String>()
+        );
+        std::fs::write(&p, format!("{CSV_HEADER}\ngravity,FEM pre-cut,tet4\n")).unwrap();
+        let err = read_csv(&p).unwrap_err().to_string();
+        assert!(err.contains("c.csv") && err.contains("line 2"), "{err}");
+    }
+
+    #[test]
+    fn the_shipped_study_csvs_read_and_write_back_byte_for_byte() {
+        let dir = tempfile::tempdir().unwrap();
+        let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("reports/data");
+        for name in ["convergence.csv", "convergence_corot.csv"] {
+            let rows = read_csv(&data.join(name)).unwrap();
+            assert!(!rows.is_empty());
+            write_csv(&dir.path().join(name), &rows).unwrap();
+            assert_eq!(
+                std::fs::read_to_string(dir.path().join(name)).unwrap(),
+                std::fs::read_to_string(data.join(name)).unwrap(),
+                "{name}"
+            );
+        }
+        let rows = crate::study::stress::read_csv(&data.join("stress.csv")).unwrap();
+        crate::study::stress::write_csv(&dir.path().join("stress.csv"), &rows).unwrap();
+        assert_eq!(
+            std::fs::read_to_string(dir.path().join("stress.csv")).unwrap(),
+            std::fs::read_to_string(data.join("stress.csv")).unwrap()
+        );
     }
 
     #[test]

@@ -13,3 +13,49 @@ pub mod reference;
 pub mod report;
 pub mod stress;
 pub mod verify;
+
+use crate::dynamics::DynamicError;
+use crate::io::IoError;
+use crate::run::RunError;
+use crate::scene::SceneError;
+use crate::solve::SolveError;
+use crate::statics::StaticError;
+
+/// Why a study run could not be done; the causes keep their types.
+#[derive(Debug, thiserror::Error)]
+pub enum StudyError {
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    #[error(transparent)]
+    Run(#[from] RunError),
+    #[error(transparent)]
+    Io(#[from] IoError),
+    #[error(transparent)]
+    Solve(#[from] SolveError),
+    #[error(transparent)]
+    Static(#[from] StaticError),
+    #[error(transparent)]
+    Dynamic(#[from] DynamicError),
+    #[error(transparent)]
+    Verify(#[from] verify::VerifyError),
+    /// A run of the study failed: which (case, variant, level), and why.
+    #[error("{run}: {source}")]
+    In {
+        run: String,
+        #[source]
+        source: Box<StudyError>,
+    },
+    /// The study's own precondition is not met (no reference, no cut, …).
+    #[error("{0}")]
+    Precondition(String),
+}
+
+impl StudyError {
+    /// This error, as the failure of `run`.
+    pub fn during(self, run: impl Into<String>) -> StudyError {
+        StudyError::In {
+            run: run.into(),
+            source: Box::new(self),
+        }
+    }
+}

@@ -6,17 +6,19 @@
 use crate::assembly::{evaluate, Request, Rotations, Workspace};
 use crate::corotation::polar_rotation;
 use crate::dynamics::{Energies, Newmark};
+use crate::io::IoError;
 use crate::locate::Locator;
 use crate::model::{Formulation, Model};
 use crate::run::{evaluate_at, probe_values, solve_scene, RunResult};
 use crate::scene::{Analysis, Scene};
 use crate::solve::Cholesky;
+use crate::study::StudyError;
 use nalgebra::{Matrix3, Point3, Vector3};
 use std::path::Path;
 use std::time::Instant;
 
-/// One line of the stress table.
-#[derive(Debug, Clone)]
+/// One line of the stress table (`stress.csv`: test,setting,measured,criterion,pass,seconds).
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct StressRow {
     /// The family (what is stressed).
     pub test: String,
@@ -28,6 +30,7 @@ pub struct StressRow {
     pub criterion: String,
     pub pass: bool,
     /// Wall time of the run (s).
+    #[serde(serialize_with = "millis")]
     pub seconds: f64,
 }
 
@@ -58,55 +61,19 @@ pub fn run_suite(only: &str, mut progress: impl FnMut(&StressRow)) -> Vec<Stress
     rows
 }
 
-/// Writes the rows as CSV (whole or not at all).
-pub fn write_csv(path: &Path, rows: &[StressRow]) -> Result<(), crate::io::IoError> {
-    use std::io::Write;
-    let clean = |s: &str| s.replace([',', '\n'], ";");
-    crate::io::write_atomic(path, |w| {
-        writeln!(w, "test,setting,measured,criterion,pass,seconds")?;
-        for r in rows {
-            writeln!(
-                w,
-                "{},{},{},{},{},{:.3}",
-                clean(&r.test),
-                clean(&r.setting),
-                clean(&r.measured),
-                clean(&r.criterion),
-                r.pass,
-                r.seconds
-            )?;
-        }
-        Ok(())
-    })
+/// Writes the rows as CSV (whole or not at all); fields with commas are quoted.
+pub fn write_csv(path: &Path, rows: &[StressRow]) -> Result<(), IoError> {
+    crate::io::csv::write_rows(path, rows)
 }
 
 /// Reads what [`write_csv`] wrote.
-pub fn read_csv(path: &Path) -> Result<Vec<StressRow>, String> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
-    text.lines()
-        .skip(1)
-        .enumerate()
-        .map(|(i, line)| {
-            let f: Vec<&str> = line.split(',').collect();
-            if f.len() != 6 {
-                return Err(format!(
-                    "{}: line {}: expected 6 fields, found {}",
-                    path.display(),
-                    i + 2,
-                    f.len()
-                ));
-            }
-            Ok(StressRow {
-                test: f[0].into(),
-                setting: f[1].into(),
-                measured: f[2].into(),
-                criterion: f[3].into(),
-                pass: f[4] == "true",
-                seconds: f[5].parse().unwrap_or(f64::NAN),
-            })
-        })
-        .collect()
+pub fn read_csv(path: &Path) -> Result<Vec<StressRow>, IoError> {
+    crate::io::csv::read_rows(path, false)
+}
+
+/// Seconds with three decimals.
+fn millis<S: serde::Serializer>(x: &f64, s: S) -> Result<S::Ok, S::Error> {
+    s.collect_str(&format_args!("{x:.3}"))
 }
 
 /// Estimates of the 2-norm condition number of the free system's tangent at
@@ -683,25 +650,28 @@ struct Tumble {
 
 /// Spins the fragment above a complete cut at z = 1.3 about the y axis
 /// through its centroid at 3 rad/s for 1.2 s (206°).
-fn tumble(formulation: &str) -> Result<Tumble, String> {
+fn tumble(formulation: &str) -> Result<Tumble, StudyError> {
     let analysis = format!(
         "{BOTTOM}[analysis]\ntype = \"dynamic\"\nformulation = \"{formulation}\"\ndt = 0.01\nsteps = 120\n"
     );
     let mut scene = bar(1.3, None, &analysis);
     // Stiff enough that the centrifugal strain (ρω²L²/E ≈ 2e-5) is small.
     scene.material.young = 1e8;
-    let mesh = scene.mesh(0).map_err(|e| e.to_string())?;
-    let (model, _plan) = scene.build(mesh).map_err(|e| e.to_string())?;
-    let chol = Cholesky::new(&model.pattern).map_err(|e| e.to_string())?;
+    let mesh = scene.mesh(0)?;
+    let (model, _plan) = scene.build(mesh)?;
+    let chol = Cholesky::new(&model.pattern)?;
     let Analysis::Dynamic { options, .. } = scene.analysis else {
-        return Err("not a dynamic scene".into());
+        return Err(StudyError::Precondition("not a dynamic scene".into()));
     };
-    let mut nm = Newmark::new(&model, chol, options).map_err(|e| e.to_string())?;
+    let mut nm = Newmark::new(&model, chol, options)?;
     // v = ω × (x − c) on the upper side's DOFs: u where the node lies above,
     // and the enriched DOFs a that the upper side sees (ψ = ±1 there).
     let omega = Vector3::new(0.0, 3.0, 0.0);
     let c = Vector3::new(0.5, 0.5, 1.65);
-    let cut = model.cut.as_ref().ok_or("the bar has no cut")?;
+    let cut = model
+        .cut
+        .as_ref()
+        .ok_or_else(|| StudyError::Precondition("the bar has no cut".into()))?;
     let n_nodes = model.mesh.n_nodes();
     for i in 0..n_nodes {
         let v = omega.cross(&(model.mesh.nodes[i].coords - c));
@@ -717,11 +687,11 @@ fn tumble(formulation: &str) -> Result<Tumble, String> {
     let e0 = nm.energies();
     let mut max_strain: f64 = 0.0;
     for _ in 0..options.steps {
-        nm.step().map_err(|e| e.to_string())?;
+        nm.step()?;
         max_strain = max_strain.max(nm.energies().strain);
     }
     if nm.state.d.iter().any(|v| !v.is_finite()) {
-        return Err("non-finite state".into());
+        return Err(StudyError::Precondition("non-finite state".into()));
     }
     // Distance from the best rigid fit (Kabsch): the discrete body's inertia
     // is not exactly that of the box (lumped masses), so it may precess; what
@@ -860,12 +830,12 @@ fn twist(
     scene: &Scene,
     angle: f64,
     arc: bool,
-) -> Result<(Model, crate::statics::StaticSolution), String> {
-    let mesh = scene.mesh(0).map_err(|e| e.to_string())?;
-    let (model, _plan) = scene.build(mesh).map_err(|e| e.to_string())?;
-    let mut chol = Cholesky::new(&model.pattern).map_err(|e| e.to_string())?;
+) -> Result<(Model, crate::statics::StaticSolution), StudyError> {
+    let mesh = scene.mesh(0)?;
+    let (model, _plan) = scene.build(mesh)?;
+    let mut chol = Cholesky::new(&model.pattern)?;
     let Analysis::Static(opts) = scene.analysis else {
-        return Err("not a static scene".into());
+        return Err(StudyError::Precondition("not a static scene".into()));
     };
     let centre = Vector3::new(0.015, 0.03, 0.0);
     let nodes = &model.mesh.nodes;
@@ -878,7 +848,7 @@ fn twist(
             lambda * p.value
         }
     })
-    .map_err(|e| format!("{}: {e}", scene.file.display()))?;
+    .map_err(|e| StudyError::from(e).during(scene.file.display().to_string()))?;
     Ok((model, sol))
 }
 
@@ -964,7 +934,7 @@ mod tests {
         let path = dir.path().join("s.csv");
         write_csv(&path, &rows).unwrap();
         let back = read_csv(&path).unwrap();
-        assert_eq!(back[0].test, "a; b");
+        assert_eq!(back[0].test, "a, b", "a comma is quoted, not replaced");
         assert!(back[0].pass);
         assert_eq!(back[0].seconds, 1.5);
     }

@@ -1,4 +1,4 @@
-// The curved incision of cases/progressive/curved_incision.toml: a cylindrical
+// The curved incision of cases/curved_incision.toml: a cylindrical
 // arc (radius 0.03 about the line x = 0, z = 0.13, along y) from x = -0.005
 // (outside the beam) to x = 0.018 (inside: the front), across y in [-0.005, 0.065].
 // Made with: gmsh -2 curved_incision.geo -format msh41 -o curved_incision.msh

@@ -1,0 +1,420 @@
+//! The crack front: the second level set ψ (signed distance to the front
+//! measured in the cut surface, negative behind it), the branch functions of
+//! the tip enrichment, and quadrature rules collapsed towards the front.
+//!
+//! Local polar coordinates (METHODS.md): r = √(φ² + ψ²), θ = atan2(φ, ψ), so
+//! the cut faces are θ = ±π and the front is r = 0. The branch functions
+//! F₁..₄ = √r {sin θ/2, cos θ/2, sin θ/2 sin θ, cos θ/2 sin θ} span the leading
+//! (Williams) term of the near-front field; F₁ jumps across the cut.
+
+use crate::mesh::{barycentric, TetMesh};
+use nalgebra::{Point3, Vector3};
+
+/// Number of branch functions per tip-enriched node.
+pub const N_BRANCH: usize = 4;
+
+/// Values of F₁..₄ at polar coordinates (r, θ).
+pub fn branch_values(r: f64, theta: f64) -> [f64; N_BRANCH] {
+    let sr = r.sqrt();
+    let (s2, c2) = (0.5 * theta).sin_cos();
+    let st = theta.sin();
+    [sr * s2, sr * c2, sr * s2 * st, sr * c2 * st]
+}
+
+/// θ for the level set values (φ, ψ) seen from side `side` of the cut: on the
+/// cut (φ = 0, ψ < 0) θ = side·π, so F₁ jumps exactly across the cut faces;
+/// φ of the wrong sign (round-off on a cut face) is taken as 0 of that side.
+pub fn polar_angle(phi: f64, psi: f64, side: i8) -> f64 {
+    let phi = match side {
+        1 if phi > 0.0 => phi,
+        1 => 0.0,
+        -1 if phi < 0.0 => phi,
+        -1 => -0.0,
+        _ => phi,
+    };
+    phi.atan2(psi)
+}
+
+/// Values and gradients of F₁..₄ at a point where the (linear) level sets
+/// have values φ, ψ and gradients ∇φ, ∇ψ, on side `side`:
+/// ∇F = ∂F/∂r ∇r + ∂F/∂θ ∇θ, ∇r = (φ∇φ + ψ∇ψ)/r, ∇θ = (ψ∇φ − φ∇ψ)/r².
+pub fn branch_with_gradients(
+    phi: f64,
+    psi: f64,
+    grad_phi: &Vector3<f64>,
+    grad_psi: &Vector3<f64>,
+    side: i8,
+) -> ([f64; N_BRANCH], [Vector3<f64>; N_BRANCH]) {
+    let theta = polar_angle(phi, psi, side);
+    let r = phi.hypot(psi);
+    let values = branch_values(r, theta);
+    if r == 0.0 {
+        return (values, [Vector3::zeros(); N_BRANCH]);
+    }
+    let dr = (grad_phi * phi + grad_psi * psi) / r;
+    let dtheta = (grad_phi * psi - grad_psi * phi) / (r * r);
+    let sr = r.sqrt();
+    let (s2, c2) = (0.5 * theta).sin_cos();
+    let (st, ct) = theta.sin_cos();
+    // (∂F/∂r, ∂F/∂θ) per branch function.
+    let partial = [
+        (s2 / (2.0 * sr), 0.5 * sr * c2),
+        (c2 / (2.0 * sr), -0.5 * sr * s2),
+        (s2 * st / (2.0 * sr), sr * (0.5 * c2 * st + s2 * ct)),
+        (c2 * st / (2.0 * sr), sr * (-0.5 * s2 * st + c2 * ct)),
+    ];
+    (values, partial.map(|(a, b)| dr * a + dtheta * b))
+}
+
+/// The part of the boundary segments of a cut surface that is crack front:
+/// the segments passing through the interior of some element (segments on
+/// the body's outer faces or outside it are not front).
+pub fn front_segments(mesh: &TetMesh, boundary: &[[Point3<f64>; 2]]) -> Vec<[Point3<f64>; 2]> {
+    let boxes: Vec<(Point3<f64>, Point3<f64>)> = (0..mesh.n_elements())
+        .map(|e| {
+            let p = mesh.vertex_points(e);
+            let lo = p.iter().fold(p[0], |a, b| a.inf(b));
+            let hi = p.iter().fold(p[0], |a, b| a.sup(b));
+            (lo, hi)
+        })
+        .collect();
+    boundary
+        .iter()
+        .filter(|seg| {
+            let (slo, shi) = (seg[0].inf(&seg[1]), seg[0].sup(&seg[1]));
+            (0..mesh.n_elements()).any(|e| {
+                let (lo, hi) = boxes[e];
+                if (0..3).any(|c| shi[c] < lo[c] || slo[c] > hi[c]) {
+                    return false;
+                }
+                segment_enters_interior(&mesh.vertex_points(e), seg)
+            })
+        })
+        .copied()
+        .collect()
+}
+
+/// Whether a positive length of segment `seg` lies strictly inside tet `p`
+/// (every barycentric coordinate above 1e-9).
+fn segment_enters_interior(p: &[Point3<f64>; 4], seg: &[Point3<f64>; 2]) -> bool {
+    let (Some(la), Some(lb)) = (barycentric(p, &seg[0]), barycentric(p, &seg[1])) else {
+        return false;
+    };
+    let eps = 1e-9;
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for k in 0..4 {
+        // λ_k(t) = la + t (lb − la) > eps.
+        let (a, d) = (la[k] - eps, lb[k] - la[k]);
+        if d.abs() < 1e-300 {
+            if a <= 0.0 {
+                return false;
+            }
+        } else if d > 0.0 {
+            t0 = t0.max(-a / d);
+        } else {
+            t1 = t1.min(-a / d);
+        }
+    }
+    t1 - t0 > 1e-12
+}
+
+/// Distance from `x` to the segment `seg`.
+pub fn segment_distance(x: &Point3<f64>, seg: &[Point3<f64>; 2]) -> f64 {
+    let d = seg[1] - seg[0];
+    let len2 = d.norm_squared();
+    let t = if len2 > 0.0 {
+        ((x - seg[0]).dot(&d) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (x - (seg[0] + d * t)).norm()
+}
+
+/// Distance from `x` to the nearest front segment (∞ without front).
+pub fn front_distance(x: &Point3<f64>, front: &[[Point3<f64>; 2]]) -> f64 {
+    front
+        .iter()
+        .map(|s| segment_distance(x, s))
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// ψ at `x` from φ(x), the distance d to the front and whether the surface
+/// contains the foot of x: ψ = ∓√(d² − φ²) (exact for a plane and a straight
+/// front, where d² = φ² + ψ²), negative where the surface contains x.
+pub fn front_level_set(phi: f64, distance: f64, inside: bool) -> f64 {
+    let a = (distance * distance - phi * phi).max(0.0).sqrt();
+    if inside {
+        -a
+    } else {
+        a
+    }
+}
+
+/// One Gauss–Legendre rule on [0, 1]: points and weights (summing to 1).
+pub fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
+    // Nodes by Newton on the Legendre polynomial, mapped from [−1, 1].
+    let mut out = Vec::with_capacity(n);
+    for i in 0..n {
+        let mut x = (std::f64::consts::PI * (i as f64 + 0.75) / (n as f64 + 0.5)).cos();
+        let mut dp = 1.0;
+        for _ in 0..100 {
+            let (mut p0, mut p1) = (1.0, x);
+            for k in 2..=n {
+                let p2 = ((2 * k - 1) as f64 * x * p1 - (k - 1) as f64 * p0) / k as f64;
+                p0 = p1;
+                p1 = p2;
+            }
+            if n == 1 {
+                p0 = 1.0;
+                p1 = x;
+            }
+            dp = n as f64 * (x * p1 - p0) / (x * x - 1.0);
+            let dx = p1 / dp;
+            x -= dx;
+            if dx.abs() < 1e-16 {
+                break;
+            }
+        }
+        let w = 2.0 / ((1.0 - x * x) * dp * dp);
+        out.push((0.5 * (1.0 - x), 0.5 * w));
+    }
+    out
+}
+
+/// The radial direction of the collapsed rules: Gauss in σ with ρ = σ²
+/// (weight 2σ), so that every r^(k/2) near the front (√r fields, 1/√r
+/// gradients, 1/r stiffness integrands, with r ∝ ρ) becomes a polynomial in σ.
+fn radial_rule(n: usize) -> Vec<(f64, f64)> {
+    gauss_legendre(n)
+        .into_iter()
+        .map(|(s, w)| (s * s, 2.0 * s * w))
+        .collect()
+}
+
+/// A quadrature point in physical space with its weight (a volume).
+#[derive(Debug, Clone, Copy)]
+pub struct PhysicalPoint {
+    pub x: Point3<f64>,
+    pub weight: f64,
+}
+
+/// Rule on the tet (p, q, c, d) collapsed onto its edge pq:
+/// x(t, s, ρ) = (1−ρ)((1−t)p + tq) + ρ((1−s)c + sd), Jacobian
+/// ρ(1−ρ)·6V, tensor Gauss with `n` points per direction and ρ = σ² (see
+/// [`radial_rule`]). Integrands like 1/dist(x, pq) or 1/√dist become smooth.
+pub fn edge_collapsed_rule(
+    p: Point3<f64>,
+    q: Point3<f64>,
+    c: Point3<f64>,
+    d: Point3<f64>,
+    n: usize,
+) -> Vec<PhysicalPoint> {
+    let six_v = (q - p).cross(&(d - c)).dot(&(c - p)).abs();
+    let g = gauss_legendre(n);
+    let radial = radial_rule(n);
+    let mut out = Vec::with_capacity(n * n * n);
+    for &(t, wt) in &g {
+        for &(s, ws) in &g {
+            for &(rho, wr) in &radial {
+                let a = p + (q - p) * t;
+                let b = c + (d - c) * s;
+                let x = a + (b - a) * rho;
+                out.push(PhysicalPoint {
+                    x,
+                    weight: wt * ws * wr * rho * (1.0 - rho) * six_v,
+                });
+            }
+        }
+    }
+    out
+}
+
+/// Duffy rule on the tet (p, a, b, c) collapsed onto its vertex p:
+/// x = p + u((a − p) + v((b − a) + w(c − b))), Jacobian u² v · 6V, u = σ².
+pub fn vertex_collapsed_rule(
+    p: Point3<f64>,
+    a: Point3<f64>,
+    b: Point3<f64>,
+    c: Point3<f64>,
+    n: usize,
+) -> Vec<PhysicalPoint> {
+    let six_v = (a - p).cross(&(b - p)).dot(&(c - p)).abs();
+    let g = gauss_legendre(n);
+    let radial = radial_rule(n);
+    let mut out = Vec::with_capacity(n * n * n);
+    for &(u, wu) in &radial {
+        for &(v, wv) in &g {
+            for &(w, ww) in &g {
+                let x = p + ((a - p) + ((b - a) + (c - b) * w) * v) * u;
+                out.push(PhysicalPoint {
+                    x,
+                    weight: wu * wv * ww * u * u * v * six_v,
+                });
+            }
+        }
+    }
+    out
+}
+
+/// Quadrature on an integration cell `v` of an element near the front: the
+/// vertices where both level sets vanish (`on_front`) decide the rule — an
+/// edge-collapsed rule for a front edge, a Duffy rule for a front vertex, and
+/// the tensor rule mapped by Duffy (degree ≥ 2n − 1 in each direction) else.
+pub fn cell_rule(v: &[Point3<f64>; 4], on_front: [bool; 4], n: usize) -> Vec<PhysicalPoint> {
+    let front: Vec<usize> = (0..4).filter(|&k| on_front[k]).collect();
+    let rest: Vec<usize> = (0..4).filter(|&k| !on_front[k]).collect();
+    match front.len() {
+        2 => edge_collapsed_rule(v[front[0]], v[front[1]], v[rest[0]], v[rest[1]], n),
+        1 => vertex_collapsed_rule(v[front[0]], v[rest[0]], v[rest[1]], v[rest[2]], n),
+        _ => vertex_collapsed_rule(v[0], v[1], v[2], v[3], n),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::tet_volume;
+
+    #[test]
+    fn branch_gradients_match_finite_differences() {
+        // Linear level sets with oblique gradients, at points on both sides and behind/ahead of the front.
+        let gphi = Vector3::new(0.2, 1.1, -0.3);
+        let gpsi = Vector3::new(0.9, -0.1, 0.4);
+        let (p0, s0) = (0.013, -0.021);
+        let eval = |x: &Vector3<f64>, side: i8| {
+            branch_with_gradients(p0 + gphi.dot(x), s0 + gpsi.dot(x), &gphi, &gpsi, side)
+        };
+        for (x, side) in [
+            (Vector3::new(0.1, 0.2, 0.3), 1),
+            (Vector3::new(-0.1, -0.2, 0.05), -1),
+            (Vector3::new(0.3, -0.05, 0.0), 1),
+        ] {
+            let (_, g) = eval(&x, side);
+            let h = 1e-6;
+            for c in 0..3 {
+                let mut e = Vector3::zeros();
+                e[c] = h;
+                let (fp, _) = eval(&(x + e), side);
+                let (fm, _) = eval(&(x - e), side);
+                for k in 0..N_BRANCH {
+                    let fd = (fp[k] - fm[k]) / (2.0 * h);
+                    assert!(
+                        (fd - g[k][c]).abs() <= 1e-7 * (1.0 + g[k][c].abs()),
+                        "F{} dir {c}: fd {fd} vs {}",
+                        k + 1,
+                        g[k][c]
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn branch_values_jump_only_in_f1_across_the_cut() {
+        let r = 0.25;
+        let up = branch_values(r, polar_angle(0.0, -r, 1));
+        let down = branch_values(r, polar_angle(0.0, -r, -1));
+        assert!((up[0] - 0.5).abs() < 1e-15 && (down[0] + 0.5).abs() < 1e-15);
+        for k in 1..N_BRANCH {
+            assert!((up[k] - down[k]).abs() < 1e-15, "F{}", k + 1);
+        }
+        // Ahead of the front (θ = 0) every branch function but F₂ = √r vanishes.
+        let ahead = branch_values(r, polar_angle(0.0, r, 1));
+        assert_eq!(ahead[0], 0.0);
+        assert!((ahead[1] - 0.5).abs() < 1e-15);
+    }
+
+    #[test]
+    fn gauss_legendre_integrates_degree_2n_minus_1() {
+        for n in 1..8 {
+            let g = gauss_legendre(n);
+            for k in 0..2 * n {
+                let q: f64 = g.iter().map(|&(x, w)| w * x.powi(k as i32)).sum();
+                assert!((q - 1.0 / (k as f64 + 1.0)).abs() < 1e-14, "n {n} x^{k}");
+            }
+        }
+    }
+
+    /// ∫_T 1/dist(x, line) over the tet with the front on its edge: the value is
+    /// known in closed form for T = {0, e_x, e_y, e_z} and the line = the z axis
+    /// through edge (0, e_z): ∫ dz ∫∫_{x+y ≤ 1−z} 1/√(x²+y²) = ∫ (1−z) dz · c,
+    /// c = ∫∫_{x+y≤1} 1/ρ = ∫_0^{π/2} dθ/(cos θ + sin θ) = √2 ln(1 + √2).
+    #[test]
+    fn collapsed_rules_integrate_an_inverse_distance_exactly() {
+        let o = Point3::origin();
+        let (ex, ey, ez) = (
+            Point3::new(1.0, 0.0, 0.0),
+            Point3::new(0.0, 1.0, 0.0),
+            Point3::new(0.0, 0.0, 1.0),
+        );
+        let exact = 0.5 * 2f64.sqrt() * (1.0 + 2f64.sqrt()).ln();
+        let f = |x: &Point3<f64>| 1.0 / x.x.hypot(x.y);
+        let integrate =
+            |rule: &[PhysicalPoint]| -> f64 { rule.iter().map(|q| q.weight * f(&q.x)).sum() };
+        let mut errors = Vec::new();
+        for n in [3, 4, 6, 8] {
+            let rule = cell_rule(&[o, ex, ey, ez], [true, false, false, true], n);
+            let vol: f64 = rule.iter().map(|q| q.weight).sum();
+            assert!((vol - 1.0 / 6.0).abs() < 1e-15);
+            errors.push((integrate(&rule) - exact).abs() / exact);
+        }
+        println!("edge-collapsed 1/r relative errors n = 3, 4, 6, 8: {errors:?}");
+        // Smooth in (t, s, ρ): exponential convergence (the angular factor
+        // 1/|(1−s, s)| is what is left), 2.5e-7 at n = 8.
+        assert!(errors.windows(2).all(|w| w[1] < 0.2 * w[0]), "{errors:?}");
+        assert!(errors[3] < 1e-6, "{errors:?}");
+        // The standard degree-5 rule on the same tet: far less accurate.
+        let p = [o, ex, ey, ez];
+        let v = tet_volume(&p);
+        let std: f64 = crate::quadrature::DEGREE5
+            .iter()
+            .map(|q| {
+                let x = p
+                    .iter()
+                    .zip(q.bary)
+                    .fold(Vector3::zeros(), |s, (a, l)| s + a.coords * l);
+                q.weight * v * f(&Point3::from(x))
+            })
+            .sum();
+        let std_err = (std - exact).abs() / exact;
+        println!("degree-5 Walkington rule, same integral: {std_err:.2e}");
+        assert!(std_err > 100.0 * errors[3]);
+        // Vertex-collapsed: 1/|x| over the same tet, front vertex at the origin;
+        // ∫_T 1/|x| = ∫_{S²∩octant} ∫_0^{ρ(ω)} ρ dρ dω with the plane x+y+z = 1
+        // checked against a tensor rule on the octant (smooth integrand there).
+        let g = |x: &Point3<f64>| 1.0 / x.coords.norm();
+        let vr = cell_rule(&[o, ex, ey, ez], [true, false, false, false], 10);
+        let duffy: f64 = vr.iter().map(|q| q.weight * g(&q.x)).sum();
+        // ∫_octant (1/2) ρ_max(ω)² dω with ρ_max = 1/(ωx+ωy+ωz), by spherical Gauss.
+        let gl = gauss_legendre(40);
+        let mut sphere = 0.0;
+        for &(a, wa) in &gl {
+            for &(b, wb) in &gl {
+                let (th, ph) = (
+                    a * std::f64::consts::FRAC_PI_2,
+                    b * std::f64::consts::FRAC_PI_2,
+                );
+                let w = Vector3::new(th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos());
+                let rmax = 1.0 / (w.x + w.y + w.z);
+                sphere +=
+                    wa * wb * std::f64::consts::FRAC_PI_2.powi(2) * th.sin() * 0.5 * rmax * rmax;
+            }
+        }
+        println!("vertex-collapsed 1/|x|: {duffy} vs {sphere}");
+        assert!((duffy - sphere).abs() < 1e-7 * sphere);
+    }
+
+    #[test]
+    fn psi_of_a_plane_and_straight_front_is_the_in_plane_distance() {
+        let seg = [Point3::new(-5.0, 0.0, 0.0), Point3::new(5.0, 0.0, 0.0)];
+        // Plane z = 0, cut on y < 0, front the x axis.
+        for (x, want) in [
+            (Point3::new(0.3, -0.2, 0.1), -0.2),
+            (Point3::new(0.3, 0.4, -0.3), 0.4),
+        ] {
+            let d = segment_distance(&x, &seg);
+            let psi = front_level_set(x.z, d, x.y < 0.0);
+            assert!((psi - want).abs() < 1e-15, "{psi} vs {want}");
+        }
+    }
+}
