@@ -3,7 +3,7 @@
 //! CG iterations, factorisations, time, and the trajectory's relative
 //! difference (all DOFs and the energy) over the run.
 //!
-//! `cargo run --release --example fast_step -- cases/bend_dynamic.toml 1 1000 [max_cg]`
+//! `cargo run --release --example fast_step -- cases/bend_dynamic.toml 1 1000 [max_cg] [CG tolerance]`
 use std::path::Path;
 use std::time::Instant;
 use xfem_cut::assembly::equation_shapes;
@@ -19,6 +19,9 @@ fn main() {
     let level: usize = args.get(1).map_or(0, |s| s.parse().expect("level"));
     let steps: usize = args.get(2).map_or(1000, |s| s.parse().expect("steps"));
     let max_cg: usize = args.get(3).map_or(25, |s| s.parse().expect("max CG"));
+    let cg_tolerance: f64 = args
+        .get(4)
+        .map_or(1e-10, |s| s.parse().expect("CG tolerance"));
     let scene = Scene::load(Path::new(file)).expect("case loads");
     let (model, _) = scene
         .build(scene.mesh(level).expect("mesh"))
@@ -27,7 +30,7 @@ fn main() {
         panic!("{file} is not dynamic")
     };
     println!(
-        "{file} level {level}: {} tets, {} free DOFs, {steps} steps, Newton tolerance {:e}, CG tolerance 1e-10, max CG {max_cg}",
+        "{file} level {level}: {} tets, {} free DOFs, {steps} steps, Newton tolerance {:e}, CG tolerance {cg_tolerance:e}, max CG {max_cg}",
         model.mesh.n_elements(),
         model.n_free,
         options.tolerance
@@ -37,14 +40,14 @@ fn main() {
         (
             "lagged factor + PCG",
             LinearSolver::Pcg {
-                tolerance: 1e-10,
+                tolerance: cg_tolerance,
                 max_cg,
             },
         ),
         (
             "warped factor + PCG",
             LinearSolver::WarpedPcg {
-                tolerance: 1e-10,
+                tolerance: cg_tolerance,
                 max_cg,
             },
         ),

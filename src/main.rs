@@ -111,6 +111,9 @@ fn run() -> Result<()> {
                     result.factorisations,
                     result.iterations.iter().max().unwrap_or(&0)
                 );
+                if let Some(steps) = &result.steps {
+                    println!("per step: {steps}");
+                }
             } else {
                 println!(
                     "static: solve {:.1} ms, Newton iterations per load step {:?}, relative residual {:.2e}, {} factorisations",

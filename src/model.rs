@@ -141,6 +141,9 @@ pub struct Model {
     pub lumped_coupling: Option<Vec<f64>>,
     /// Consistent mass, lower triangle on the pattern, if built.
     pub consistent_mass: Option<Vec<f64>>,
+    /// Per node (Tet10 with tip enrichment only, else empty): the vertices of
+    /// the edge a mid-node sits on when one of them is tip-enriched.
+    pub mid_edge: Vec<Option<[u32; 2]>>,
 }
 
 /// An integration cell of an element: a (sub-)tetrahedron on one side of the cut.
@@ -594,6 +597,21 @@ impl Model {
             values
         });
 
+        // Tet10 mid-nodes next to tip-enriched vertices: their edge (for node_displacement).
+        let mut mid_edge = Vec::new();
+        if let (ElementKind::Tet10, Some(c)) = (kind, cut.as_ref()) {
+            if c.n_tip > 0 {
+                mid_edge = vec![None; n_nodes];
+                for e in 0..mesh.n_elements() {
+                    let conn = mesh.element(e);
+                    for (k, &(a, b)) in TET10_EDGES.iter().enumerate() {
+                        if c.tip[conn[a]].is_some() || c.tip[conn[b]].is_some() {
+                            mid_edge[conn[4 + k]] = Some([conn[a] as u32, conn[b] as u32]);
+                        }
+                    }
+                }
+            }
+        }
         Ok(Model {
             mesh,
             material,
@@ -616,6 +634,7 @@ impl Model {
             lumped_mass: lumped,
             lumped_coupling: coupling,
             consistent_mass,
+            mid_edge,
         })
     }
 
@@ -641,6 +660,25 @@ impl Model {
                 for b in 0..N_BRANCH {
                     let s = first + b;
                     u += Vector3::new(d[3 * s], d[3 * s + 1], d[3 * s + 2]) * (here[b] - shift[b]);
+                }
+            }
+            // A Tet10 mid-node: the tip functions of its edge's tip-enriched
+            // vertices (λ = ½ each) do not vanish there.
+            if let Some(&Some([a, b])) = self.mid_edge.get(node) {
+                let (f, g) = (c.phi[node], c.front_level[node]);
+                let side = if side != 0 { side } else { c.node_side[node] };
+                let here = front::branch_values(f.hypot(g), front::polar_angle(f, g, side));
+                for v in [a as usize, b as usize] {
+                    let Some(t) = c.tip[v] else { continue };
+                    let (fv, gv) = (c.phi[v], c.front_level[v]);
+                    let own = if fv >= 0.0 { 1 } else { -1 };
+                    let shift = front::branch_values(fv.hypot(gv), front::polar_angle(fv, gv, own));
+                    let first = self.mesh.n_nodes() + c.n_enriched + N_BRANCH * t;
+                    for k in 0..N_BRANCH {
+                        let s = first + k;
+                        u += Vector3::new(d[3 * s], d[3 * s + 1], d[3 * s + 2])
+                            * (0.5 * (here[k] - shift[k]));
+                    }
                 }
             }
         }

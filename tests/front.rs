@@ -405,6 +405,20 @@ fn the_exact_field_is_in_the_tip_enriched_space() {
                 worst_u < 1e-10 && worst_g < 1e-10,
                 "{kind:?}: {worst_u} {worst_g}"
             );
+            // Node displacements (VTU output) seen from both sides: the exact
+            // field at the node, Tet10 mid-nodes next to tip vertices included.
+            let mut worst_node: f64 = 0.0;
+            let c = model.cut.as_ref().unwrap();
+            for (i, p) in model.mesh.nodes.iter().enumerate() {
+                let own = c.node_side[i];
+                let u = fr.exact(p, own).0;
+                worst_node = worst_node
+                    .max((model.node_displacement(&d, i, own) - u).norm() / u.norm().max(1e-3));
+                worst_node = worst_node
+                    .max((model.node_displacement(&d, i, 0) - u).norm() / u.norm().max(1e-3));
+            }
+            println!("    node displacements: worst relative error {worst_node:.1e}");
+            assert!(worst_node < 1e-10, "{kind:?}: nodes {worst_node}");
         }
     }
 }
@@ -807,8 +821,7 @@ fn two_fronts_in_one_element_are_refused_naming_both() {
         &mesh,
         &[CutInput::tip(&a, 1e-4, None), CutInput::tip(&b, 1e-4, None)],
     )
-    .err()
-    .expect("refused");
+    .expect_err("refused");
     let text = err.to_string();
     println!("{text}");
     assert!(text.contains("cut[0]") && text.contains("cut[1]"), "{text}");

@@ -360,11 +360,19 @@ fn mutated_cases_and_meshes_are_accepted_or_refused_in_one_line() {
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(100_000);
-    let mut cases: Vec<PathBuf> = std::fs::read_dir(root().join("cases"))
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
-        .collect();
+    // Every shipped case, in cases/ and its folders (cut surfaces beside them).
+    let mut cases: Vec<PathBuf> = Vec::new();
+    let mut dirs = vec![root().join("cases")];
+    while let Some(dir) = dirs.pop() {
+        for e in std::fs::read_dir(&dir).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                dirs.push(p);
+            } else if p.extension().is_some_and(|e| e == "toml") {
+                cases.push(p);
+            }
+        }
+    }
     cases.sort();
     let meshes: Vec<PathBuf> = [
         "gmsh_cube_tet4_binary.msh",
