@@ -42,9 +42,9 @@ VENV_PY = str(ROOT / ".venv" / "bin" / "python")
 # L0 in every set (the tests read it); P1 on L1-L2 and P2 on L1 only in the sets with the fine
 # references (`make refs`), so the corotational study has an independent reference beyond L0.
 COROT = [(case, "beam_crack", level, degree, 20, 1.0, 1e-11)
-         for case in ("stretch_face", "bend_face")
          for degree, levels in ((1, ("L0", "L1", "L2")), (2, ("L0", "L1")))
-         for level in levels]
+         for level in levels
+         for case in ("stretch_face", "bend_face")]
 
 
 def tool_versions() -> str:
