@@ -276,6 +276,11 @@ fn the_plan_shows_the_options_the_run_uses() {
             "every iteration",
         ),
         (
+            dynamic("linear_solver = \"warped_pcg\""),
+            "warped by the node rotations",
+            "every iteration",
+        ),
+        (
             dynamic(""),
             "[run ] numeric factorisation every iteration",
             "PCG",

@@ -137,6 +137,9 @@ pub enum MassFile {
 pub enum SolverFile {
     Direct,
     Pcg,
+    /// CG preconditioned by the last factor warped by per-node rotations.
+    #[serde(rename = "warped_pcg")]
+    WarpedPcg,
 }
 
 /// `[analysis]`: the keys of both types; `validate` refuses those of the other type.
@@ -820,6 +823,12 @@ fn validate_analysis(c: &Checker, a: AnalysisFile) -> Result<(Formulation, Analy
                 SolverFile::Pcg => LinearSolver::Pcg {
                     tolerance: 1e-8,
                     max_cg: 25,
+                },
+                // CG to 1e-10 relative follows the refactorising step to ~1e-15
+                // over 1000 steps of bend_dynamic L1 (examples/fast_step.rs).
+                SolverFile::WarpedPcg => LinearSolver::WarpedPcg {
+                    tolerance: 1e-10,
+                    max_cg: 50,
                 },
             };
             let output_every = c
