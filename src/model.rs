@@ -790,6 +790,11 @@ impl Model {
     }
 
     /// Displacement at reference point `x` inside element `e` on side `side`.
+    ///
+    /// `x` outside `e` extrapolates its shape functions (callers locate the
+    /// point first). Barycentric coordinates exist for every element of a
+    /// model, since [`Model::build`] refuses degenerate ones; the centroid in
+    /// their place is only a guard that no built model reaches.
     pub fn displacement_at(&self, d: &[f64], e: usize, x: &Point3<f64>, side: i8) -> Vector3<f64> {
         if let Some(c) = &self.cut {
             if self.mesh.element(e).iter().any(|&i| c.tip[i].is_some()) {
@@ -797,7 +802,9 @@ impl Model {
             }
         }
         let verts = self.mesh.vertex_points(e);
-        let bary = crate::mesh::barycentric(&verts, x).unwrap_or([0.25; 4]);
+        let bary = crate::mesh::barycentric(&verts, x);
+        debug_assert!(bary.is_some(), "element {e} of a built model is degenerate");
+        let bary = bary.unwrap_or([0.25; 4]);
         let mut n = [0.0; 10];
         shape_values(self.mesh.kind, &bary, &mut n);
         let conn = self.mesh.element(e);
