@@ -10,35 +10,14 @@ use std::hint::black_box;
 use xfem_cut::blade::{map_state, same_setup, Blade, CutItem, CutSet};
 use xfem_cut::cut::{CutSetup, DEFAULT_SNAP};
 use xfem_cut::dynamics::{DynamicOptions, Newmark};
-use xfem_cut::material::Material;
-use xfem_cut::mesh::{box_mesh, TetMesh};
-use xfem_cut::model::{Formulation, Model, ModelInput};
+use xfem_cut::mesh::TetMesh;
+use xfem_cut::model::{Formulation, Model};
 use xfem_cut::solve::Cholesky;
+use xfem_cut::study::fixtures::{beam_mesh, seed_beam};
 
+/// The seed's beam on `mesh`, bottom clamped, gravity in +x, with mass.
 fn model(mesh: &TetMesh, cut: Option<CutSetup>, formulation: Formulation) -> Model {
-    let fixed = mesh
-        .nodes
-        .iter()
-        .enumerate()
-        .filter(|(_, p)| p.z.abs() < 1e-12)
-        .map(|(i, _)| (i, [Some(0.0); 3]))
-        .collect();
-    Model::build(ModelInput {
-        mesh: mesh.clone(),
-        material: Material {
-            young: 3.0e5,
-            poisson: 0.35,
-            density: 1070.0,
-        },
-        formulation,
-        cut,
-        fixed,
-        gravity: Some(Vector3::new(9.81, 0.0, 0.0)),
-        body_force: None,
-        tractions: &[],
-        need_mass: true,
-    })
-    .unwrap()
+    seed_beam(mesh.clone(), formulation, cut).unwrap()
 }
 
 /// A blade opening the seed's cut (x from 0 to 0.015 at z = 0.1) during [0, 1] s.
@@ -71,8 +50,7 @@ fn benches(c: &mut Criterion) {
         ("tet4_10k", [6, 12, 24], false),
         ("tet10_1k", [3, 6, 10], true),
     ] {
-        let m = box_mesh(Point3::origin(), Point3::new(0.03, 0.06, 0.2), div);
-        let mesh = if tet10 { m.to_tet10() } else { m };
+        let mesh = beam_mesh(div, tet10);
         let cuts = cuts();
         // The set-up half-way, and the time of the next event after it.
         let t_a = 0.5;

@@ -10,16 +10,10 @@ use std::hint::black_box;
 use xfem_cut::assembly::{equation_shapes, evaluate, Request, Rotations, Workspace};
 use xfem_cut::cut::{setup_cut, CutInput, CutSetup, PlanarPatch, DEFAULT_SNAP};
 use xfem_cut::dynamics::{DynamicOptions, LinearSolver, Newmark};
-use xfem_cut::material::Material;
-use xfem_cut::mesh::{box_mesh, TetMesh};
-use xfem_cut::model::{Formulation, Model, ModelInput};
+use xfem_cut::mesh::TetMesh;
+use xfem_cut::model::{Formulation, Model};
 use xfem_cut::solve::{Cholesky, Parallelism};
-
-const MAT: Material = Material {
-    young: 3.0e5,
-    poisson: 0.35,
-    density: 1070.0,
-};
+use xfem_cut::study::fixtures::{beam_mesh, seed_beam};
 
 /// The seed's cut: from the face x = 0 through half the thickness at z = 0.1.
 fn seed_patch() -> PlanarPatch {
@@ -27,15 +21,6 @@ fn seed_patch() -> PlanarPatch {
         origin: Point3::new(0.0, 0.0, 0.1),
         u: Vector3::new(0.015, 0.0, 0.0),
         v: Vector3::new(0.0, 0.06, 0.0),
-    }
-}
-
-fn beam(div: [usize; 3], tet10: bool) -> TetMesh {
-    let m = box_mesh(Point3::origin(), Point3::new(0.03, 0.06, 0.2), div);
-    if tet10 {
-        m.to_tet10()
-    } else {
-        m
     }
 }
 
@@ -47,25 +32,7 @@ fn cut_of(mesh: &TetMesh) -> CutSetup {
 
 /// Bottom clamped, gravity in +x (the seed's `gravity` scene).
 fn model(mesh: TetMesh, cut: Option<CutSetup>, formulation: Formulation) -> Model {
-    let fixed = mesh
-        .nodes
-        .iter()
-        .enumerate()
-        .filter(|(_, p)| p.z.abs() < 1e-12)
-        .map(|(i, _)| (i, [Some(0.0); 3]))
-        .collect();
-    Model::build(ModelInput {
-        mesh,
-        material: MAT,
-        formulation,
-        cut,
-        fixed,
-        gravity: Some(Vector3::new(9.81, 0.0, 0.0)),
-        body_force: None,
-        tractions: &[],
-        need_mass: true,
-    })
-    .unwrap()
+    seed_beam(mesh, formulation, cut).unwrap()
 }
 
 /// The tangent at a small deformation (values on the model's pattern).
@@ -109,12 +76,12 @@ fn precompute_split(c: &mut Criterion) {
     g.sample_size(10);
     for (label, div, tet10) in SIZES {
         let k = kind(tet10);
-        let mesh = beam(div, tet10);
+        let mesh = beam_mesh(div, tet10);
         let cut = cut_of(&mesh);
         let m = model(mesh.clone(), Some(cut.clone()), Formulation::Corotational);
         let values = tangent(&m);
         let id = |stage: &str| BenchmarkId::new(format!("{stage}/{k}"), label);
-        g.bench_function(id("mesh"), |b| b.iter(|| black_box(beam(div, tet10))));
+        g.bench_function(id("mesh"), |b| b.iter(|| black_box(beam_mesh(div, tet10))));
         g.bench_function(id("cut-setup"), |b| b.iter(|| black_box(cut_of(&mesh))));
         g.bench_function(id("element-data"), |b| {
             b.iter(|| {
@@ -148,7 +115,7 @@ fn cut_step(c: &mut Criterion) {
                 "corotational"
             };
             for with_cut in [false, true] {
-                let mesh = beam(div, tet10);
+                let mesh = beam_mesh(div, tet10);
                 let cut = with_cut.then(|| cut_of(&mesh));
                 let n_cut = cut.as_ref().map_or(0, CutSetup::n_cut);
                 let m = model(mesh, cut, formulation);

@@ -2,51 +2,17 @@
 //! Criterion benches: precompute and one time step, linear and corotational, Tet4 and Tet10.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
-use nalgebra::{Point3, Vector3};
 use std::hint::black_box;
 use xfem_cut::assembly::{evaluate, Request, Rotations, Workspace};
 use xfem_cut::dynamics::{DynamicOptions, LinearSolver, Newmark};
-use xfem_cut::material::Material;
-use xfem_cut::mesh::{box_mesh, TetMesh};
-use xfem_cut::model::{Formulation, Model, ModelInput};
+use xfem_cut::mesh::TetMesh;
+use xfem_cut::model::{Formulation, Model};
 use xfem_cut::solve::Cholesky;
+use xfem_cut::study::fixtures::{beam_mesh, seed_beam};
 
-const MAT: Material = Material {
-    young: 3.0e5,
-    poisson: 0.35,
-    density: 1070.0,
-};
-
-/// The seed's beam with `div` hexes per axis, bottom clamped, gravity in +x.
-fn beam(div: [usize; 3], tet10: bool) -> TetMesh {
-    let m = box_mesh(Point3::origin(), Point3::new(0.03, 0.06, 0.2), div);
-    if tet10 {
-        m.to_tet10()
-    } else {
-        m
-    }
-}
-
+/// The seed's beam, bottom clamped, gravity in +x, with mass.
 fn model(mesh: TetMesh, formulation: Formulation) -> Model {
-    let fixed = mesh
-        .nodes
-        .iter()
-        .enumerate()
-        .filter(|(_, p)| p.z.abs() < 1e-12)
-        .map(|(i, _)| (i, [Some(0.0); 3]))
-        .collect();
-    Model::build(ModelInput {
-        mesh,
-        material: MAT,
-        formulation,
-        cut: None,
-        fixed,
-        gravity: Some(Vector3::new(9.81, 0.0, 0.0)),
-        body_force: None,
-        tractions: &[],
-        need_mass: true,
-    })
-    .unwrap()
+    seed_beam(mesh, formulation, None).unwrap()
 }
 
 fn chol_new(m: &Model) -> Cholesky {
@@ -67,7 +33,7 @@ fn benches(c: &mut Criterion) {
             BenchmarkId::new(format!("model+symbolic/{kind}"), label),
             |b| {
                 b.iter(|| {
-                    let m = model(beam(div, tet10), Formulation::Corotational);
+                    let m = model(beam_mesh(div, tet10), Formulation::Corotational);
                     let chol = Cholesky::new(&m.pattern).unwrap();
                     black_box((m.n_free, chol.factor_nnz()))
                 })
@@ -81,7 +47,7 @@ fn benches(c: &mut Criterion) {
     for (label, div, tet10) in sizes {
         let kind = if tet10 { "tet10" } else { "tet4" };
         for formulation in [Formulation::Linear, Formulation::Corotational] {
-            let m = model(beam(div, tet10), formulation);
+            let m = model(beam_mesh(div, tet10), formulation);
             let name = format!(
                 "{}/{kind}/{}tets",
                 if formulation == Formulation::Linear {
@@ -122,7 +88,7 @@ fn benches(c: &mut Criterion) {
             }
         }
         // The assembly alone (rotations + forces + tangent) for the corotational step.
-        let m = model(beam(div, tet10), Formulation::Corotational);
+        let m = model(beam_mesh(div, tet10), Formulation::Corotational);
         let d = vec![1e-3; m.n_dofs()];
         let mut rot = Rotations::identity(&m);
         let mut ws = Workspace::new(&m);

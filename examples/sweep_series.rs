@@ -7,9 +7,8 @@ use nalgebra::{Point3, Vector3};
 use xfem_cut::blade::{run_dynamic, Blade, CutItem, CutSet};
 use xfem_cut::cut::DEFAULT_SNAP;
 use xfem_cut::dynamics::DynamicOptions;
-use xfem_cut::material::Material;
-use xfem_cut::mesh::box_mesh;
-use xfem_cut::model::{Formulation, Model, ModelInput};
+use xfem_cut::model::Formulation;
+use xfem_cut::study::fixtures::{beam_mesh, seed_beam};
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -23,7 +22,7 @@ fn main() {
         Some("corotational") => Formulation::Corotational,
         _ => Formulation::Linear,
     };
-    let mesh = box_mesh(Point3::origin(), Point3::new(0.03, 0.06, 0.2), div);
+    let mesh = beam_mesh(div, false);
     let blade = Blade::straight(
         0,
         Point3::new(0.0, -0.01, 0.1),
@@ -38,30 +37,7 @@ fn main() {
         snap: DEFAULT_SNAP,
         front: xfem_cut::cut::FrontMode::Extend,
     };
-    let build = |cut| {
-        let fixed = mesh
-            .nodes
-            .iter()
-            .enumerate()
-            .filter(|(_, p)| p.z == 0.0)
-            .map(|(i, _)| (i, [Some(0.0); 3]))
-            .collect();
-        Model::build(ModelInput {
-            mesh: mesh.clone(),
-            material: Material {
-                young: 3.0e5,
-                poisson: 0.35,
-                density: 1070.0,
-            },
-            formulation,
-            cut,
-            fixed,
-            gravity: Some(Vector3::new(9.81, 0.0, 0.0)),
-            body_force: None,
-            tractions: &[],
-            need_mass: true,
-        })
-    };
+    let build = |cut| seed_beam(mesh.clone(), formulation, cut);
     let opts = DynamicOptions {
         dt: 0.01,
         steps: 70,

@@ -247,25 +247,7 @@ fn clamped_cut_model(
     gravity: Option<Vector3<f64>>,
     need_mass: bool,
 ) -> Model {
-    let fixed = mesh
-        .nodes
-        .iter()
-        .enumerate()
-        .filter(|(_, p)| p.z.abs() < 1e-12)
-        .map(|(i, _)| (i, [Some(0.0); 3]))
-        .collect();
-    Model::build(ModelInput {
-        mesh,
-        material: MAT,
-        formulation,
-        cut,
-        fixed,
-        gravity,
-        body_force: None,
-        tractions: &[],
-        need_mass,
-    })
-    .unwrap()
+    xfem_cut::study::fixtures::clamped_beam(mesh, formulation, cut, gravity, need_mass).unwrap()
 }
 
 /// Mean x displacement of the nodes on the face z = zmax.

@@ -6,9 +6,11 @@
 //! - [`reference`]: reading the FEniCSx P2 reference solutions (`refs/out`).
 //! - [`verify`]: L2 errors between fields, observed orders.
 //! - [`stress`]: the stress suite behind `xfem-cut stress`.
+//! - [`fixtures`]: the clamped beam and the fragment spin that tests, benches and examples share.
 //! - [`report`]: `reports/README.md` and its plots.
 
 pub mod converge;
+pub mod fixtures;
 pub mod reference;
 pub mod report;
 pub mod stress;
