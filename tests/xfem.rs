@@ -307,22 +307,13 @@ fn tumble(formulation: &str) -> (f64, f64, f64) {
     let mut nm = xfem_cut::dynamics::Newmark::new(&model, chol, options).unwrap();
     // v = ω × (x − c) on the upper side's DOFs (u for H = +1, u + a for H = −1);
     // the lower side (u for H = −1, u − a for H = +1) stays at rest.
-    let omega = Vector3::new(0.0, 3.0, 0.0);
-    let c = Vector3::new(0.5, 0.5, 1.65);
-    let cut = model.cut.as_ref().unwrap();
-    let n_nodes = model.mesh.n_nodes();
-    for i in 0..n_nodes {
-        let v = omega.cross(&(model.mesh.nodes[i].coords - c));
-        let upper = cut.phi[i] >= 0.0;
-        for k in 0..3 {
-            if upper {
-                nm.state.v[3 * i + k] = v[k];
-            }
-            if let Some(j) = cut.enriched[i] {
-                nm.state.v[3 * (n_nodes + j) + k] = v[k];
-            }
-        }
-    }
+    xfem_cut::study::fixtures::spin_upper_side(
+        &model,
+        model.cut.as_ref().unwrap(),
+        &mut nm.state.v,
+        Vector3::new(0.0, 3.0, 0.0),
+        Vector3::new(0.5, 0.5, 1.65),
+    );
     let e0 = nm.energies();
     let mut max_strain: f64 = 0.0;
     for _ in 0..120 {

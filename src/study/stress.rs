@@ -12,6 +12,7 @@ use crate::model::{Formulation, Model};
 use crate::run::{evaluate_at, probe_values, solve_scene, RunResult};
 use crate::scene::{Analysis, Scene};
 use crate::solve::Cholesky;
+use crate::study::fixtures::spin_upper_side;
 use crate::study::StudyError;
 use nalgebra::{Matrix3, Point3, Vector3};
 use std::path::Path;
@@ -168,6 +169,17 @@ fn row(
     }
 }
 
+/// The row of a run that failed with `e`: measured "error: {e}", not passed.
+fn failed(
+    test: &str,
+    setting: String,
+    criterion: &str,
+    e: &dyn std::fmt::Display,
+    t: Instant,
+) -> StressRow {
+    row(test, setting, format!("error: {e}"), criterion, false, t)
+}
+
 fn finite(r: &RunResult) -> bool {
     r.d.iter().all(|v| v.is_finite())
 }
@@ -289,14 +301,7 @@ fn cut_near_nodes() -> Vec<StressRow> {
                         t,
                     ));
                 }
-                Err(e) => rows.push(row(
-                    TEST,
-                    setting,
-                    format!("error: {e}"),
-                    criterion,
-                    false,
-                    t,
-                )),
+                Err(e) => rows.push(failed(TEST, setting, criterion, &e, t)),
             }
         }
     }
@@ -376,14 +381,7 @@ fn poisson_ratio() -> Vec<StressRow> {
                         t,
                     ));
                 }
-                Err(e) => rows.push(row(
-                    TEST,
-                    setting,
-                    format!("error: {e}"),
-                    criterion,
-                    false,
-                    t,
-                )),
+                Err(e) => rows.push(failed(TEST, setting, criterion, &e, t)),
             }
         }
     }
@@ -465,14 +463,7 @@ fn time_step() -> Vec<StressRow> {
                     t,
                 ));
             }
-            Err(e) => rows.push(row(
-                TEST,
-                setting,
-                format!("error: {e}"),
-                criterion,
-                false,
-                t,
-            )),
+            Err(e) => rows.push(failed(TEST, setting, criterion, &e, t)),
         }
     }
     rows
@@ -514,14 +505,7 @@ fn long_undamped() -> Vec<StressRow> {
                     t,
                 ));
             }
-            Err(e) => rows.push(row(
-                TEST,
-                setting,
-                format!("error: {e}"),
-                criterion,
-                false,
-                t,
-            )),
+            Err(e) => rows.push(failed(TEST, setting, criterion, &e, t)),
         }
     }
     rows
@@ -566,14 +550,7 @@ fn freed_fragment() -> Vec<StressRow> {
                     t,
                 ));
             }
-            Err(e) => rows.push(row(
-                TEST,
-                setting,
-                format!("error: {e}"),
-                criterion,
-                false,
-                t,
-            )),
+            Err(e) => rows.push(failed(TEST, setting, criterion, &e, t)),
         }
     }
     for formulation in ["corotational", "linear"] {
@@ -608,14 +585,7 @@ fn freed_fragment() -> Vec<StressRow> {
                     t,
                 ));
             }
-            Err(e) => rows.push(row(
-                TEST,
-                setting,
-                format!("error: {e}"),
-                criterion,
-                false,
-                t,
-            )),
+            Err(e) => rows.push(failed(TEST, setting, criterion, &e, t)),
         }
     }
     rows
@@ -664,26 +634,19 @@ fn tumble(formulation: &str) -> Result<Tumble, StudyError> {
         return Err(StudyError::Precondition("not a dynamic scene".into()));
     };
     let mut nm = Newmark::new(&model, chol, options)?;
-    // v = ω × (x − c) on the upper side's DOFs: u where the node lies above,
-    // and the enriched DOFs a that the upper side sees (ψ = ±1 there).
-    let omega = Vector3::new(0.0, 3.0, 0.0);
-    let c = Vector3::new(0.5, 0.5, 1.65);
+    // v = ω × (x − c) on the upper side's DOFs.
     let cut = model
         .cut
         .as_ref()
         .ok_or_else(|| StudyError::Precondition("the bar has no cut".into()))?;
+    spin_upper_side(
+        &model,
+        cut,
+        &mut nm.state.v,
+        Vector3::new(0.0, 3.0, 0.0),
+        Vector3::new(0.5, 0.5, 1.65),
+    );
     let n_nodes = model.mesh.n_nodes();
-    for i in 0..n_nodes {
-        let v = omega.cross(&(model.mesh.nodes[i].coords - c));
-        for k in 0..3 {
-            if cut.phi[i] >= 0.0 {
-                nm.state.v[3 * i + k] = v[k];
-            }
-            if let Some(j) = cut.enriched[i] {
-                nm.state.v[3 * (n_nodes + j) + k] = v[k];
-            }
-        }
-    }
     let e0 = nm.energies();
     let mut max_strain: f64 = 0.0;
     for _ in 0..options.steps {
@@ -811,14 +774,7 @@ fn large_rotation() -> Vec<StressRow> {
                     t,
                 ));
             }
-            Err(e) => rows.push(row(
-                TEST,
-                setting,
-                format!("error: {e}"),
-                criterion,
-                false,
-                t,
-            )),
+            Err(e) => rows.push(failed(TEST, setting, criterion, &e, t)),
         }
     }
     rows
@@ -910,7 +866,7 @@ displacement = [0.0, 0.0, -0.8]
                     t,
                 ));
             }
-            Err(e) => rows.push(row(TEST, setting.into(), format!("error: {e}"), criterion, false, t)),
+            Err(e) => rows.push(failed(TEST, setting.into(), criterion, &e, t)),
         }
     }
     rows
