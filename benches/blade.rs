@@ -5,15 +5,14 @@
 //! corotational. Short runs: `cargo bench --bench blade -- --warm-up-time 1 --measurement-time 2`.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
-use nalgebra::{Point3, Vector3};
 use std::hint::black_box;
-use xfem_cut::blade::{map_state, same_setup, Blade, CutItem, CutSet};
-use xfem_cut::cut::{CutSetup, DEFAULT_SNAP};
+use xfem_cut::blade::{map_state, same_setup, CutSet};
+use xfem_cut::cut::CutSetup;
 use xfem_cut::dynamics::{DynamicOptions, Newmark};
 use xfem_cut::mesh::TetMesh;
 use xfem_cut::model::{Formulation, Model};
 use xfem_cut::solve::Cholesky;
-use xfem_cut::study::fixtures::{beam_mesh, seed_beam};
+use xfem_cut::study::fixtures::{beam_mesh, seed_beam, seed_blade};
 
 /// The seed's beam on `mesh`, bottom clamped, gravity in +x, with mass.
 fn model(mesh: &TetMesh, cut: Option<CutSetup>, formulation: Formulation) -> Model {
@@ -22,20 +21,7 @@ fn model(mesh: &TetMesh, cut: Option<CutSetup>, formulation: Formulation) -> Mod
 
 /// A blade opening the seed's cut (x from 0 to 0.015 at z = 0.1) during [0, 1] s.
 fn cuts() -> CutSet {
-    let blade = Blade::straight(
-        0,
-        Point3::new(0.0, -0.01, 0.1),
-        Point3::new(0.0, 0.07, 0.1),
-        Vector3::new(0.015, 0.0, 0.0),
-        0.0,
-        1.0,
-    )
-    .unwrap();
-    CutSet {
-        items: vec![CutItem::Blade(blade)],
-        snap: DEFAULT_SNAP,
-        front: xfem_cut::cut::FrontMode::Extend,
-    }
+    seed_blade(0.0, 1.0)
 }
 
 fn benches(c: &mut Criterion) {

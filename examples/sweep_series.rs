@@ -3,12 +3,10 @@
 //! (event_seconds > 0 where a cut event followed the step) and the sweep's
 //! summary on stderr.
 //! `cargo run --release --example sweep_series -- NX NY NZ [linear|corotational]`
-use nalgebra::{Point3, Vector3};
-use xfem_cut::blade::{run_dynamic, Blade, CutItem, CutSet};
-use xfem_cut::cut::DEFAULT_SNAP;
+use xfem_cut::blade::run_dynamic;
 use xfem_cut::dynamics::DynamicOptions;
 use xfem_cut::model::Formulation;
-use xfem_cut::study::fixtures::{beam_mesh, seed_beam};
+use xfem_cut::study::fixtures::{beam_mesh, seed_beam, seed_blade};
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -23,20 +21,7 @@ fn main() {
         _ => Formulation::Linear,
     };
     let mesh = beam_mesh(div, false);
-    let blade = Blade::straight(
-        0,
-        Point3::new(0.0, -0.01, 0.1),
-        Point3::new(0.0, 0.07, 0.1),
-        Vector3::new(0.015, 0.0, 0.0),
-        0.1,
-        0.6,
-    )
-    .unwrap();
-    let cuts = CutSet {
-        items: vec![CutItem::Blade(blade)],
-        snap: DEFAULT_SNAP,
-        front: xfem_cut::cut::FrontMode::Extend,
-    };
+    let cuts = seed_blade(0.1, 0.6);
     let build = |cut| seed_beam(mesh.clone(), formulation, cut);
     let opts = DynamicOptions {
         dt: 0.01,

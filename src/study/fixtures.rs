@@ -1,12 +1,14 @@
 //! The fixtures that tests, benches, examples and the stress suite share:
 //! the seed's clamped beam (its test object, figure 9a: 3 cm × 6 cm × 20 cm, E = 3·10⁵ Pa,
 //! ν = 0.35, ρ = 1070 kg/m³, bottom face z = 0 clamped, gravity 9.81 m/s²
-//! along +x) and the spin given to a fragment freed by a complete cut.
+//! along +x), the blade that opens the seed's cut on it, and the spin given
+//! to a fragment freed by a complete cut.
 //!
 //! Each caller used to carry its own copy of these; one definition keeps the
 //! meshes, materials, fixes and loads they compute with the same.
 
-use crate::cut::CutSetup;
+use crate::blade::{Blade, CutItem, CutSet};
+use crate::cut::{CutSetup, FrontMode, DEFAULT_SNAP};
 use crate::material::Material;
 use crate::mesh::{box_mesh, TetMesh};
 use crate::model::{Formulation, Model, ModelError, ModelInput};
@@ -77,6 +79,26 @@ pub fn seed_beam(
     cut: Option<CutSetup>,
 ) -> Result<Model, ModelError> {
     clamped_beam(mesh, formulation, cut, Some(beam_gravity()), true)
+}
+
+/// One blade opening the seed's cut on the beam (x from 0 to 0.015 at
+/// z = 0.1, edge across y from −0.01 to 0.07) from time `t0` to `t1`; default
+/// snap, front extended.
+pub fn seed_blade(t0: f64, t1: f64) -> CutSet {
+    let blade = Blade::straight(
+        0,
+        Point3::new(0.0, -0.01, 0.1),
+        Point3::new(0.0, 0.07, 0.1),
+        Vector3::new(0.015, 0.0, 0.0),
+        t0,
+        t1,
+    )
+    .expect("the seed blade is well formed");
+    CutSet {
+        items: vec![CutItem::Blade(blade)],
+        snap: DEFAULT_SNAP,
+        front: FrontMode::Extend,
+    }
 }
 
 /// Spins the side of `cut` above it (φ ≥ 0) rigidly: writes v = ω × (x − c)
