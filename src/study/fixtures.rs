@@ -126,3 +126,34 @@ pub fn spin_upper_side(
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_clamped_beam_fixes_exactly_the_bottom_face() {
+        // Tet4: the (3 + 1)(6 + 1) corner nodes of z = 0; Tet10 adds the
+        // face's edge and diagonal mid-nodes: (2·3 + 1)(2·6 + 1).
+        for (tet10, want) in [(false, 4 * 7), (true, 7 * 13)] {
+            let mesh = beam_mesh([3, 6, 10], tet10);
+            let fixed = clamped_bottom(&mesh);
+            assert_eq!(fixed.len(), want, "tet10 = {tet10}");
+            assert!(fixed
+                .iter()
+                .all(|&(i, f)| mesh.nodes[i].z == 0.0 && f == [Some(0.0); 3]));
+            let n = mesh.n_nodes();
+            let model = seed_beam(mesh, Formulation::Linear, None).unwrap();
+            assert_eq!(model.n_free, 3 * (n - want), "tet10 = {tet10}");
+            assert!(model.lumped_mass.is_some());
+        }
+    }
+
+    #[test]
+    fn the_seed_blade_cuts_the_beam_once_it_has_entered() {
+        let mesh = beam_mesh([3, 6, 11], false);
+        let cuts = seed_blade(0.0, 1.0);
+        let cut = cuts.setup_at(&mesh, 1.0).unwrap().expect("cut at t = 1");
+        assert!(cut.n_cut() > 0);
+    }
+}
