@@ -336,6 +336,9 @@ pub fn red_children<T: Copy>(
     ]
 }
 
+/// A quadrature rule appending a cell's points.
+pub type LeafRule = dyn Fn(&[Point3<f64>; 4], &mut Vec<PhysicalPoint>);
+
 /// Quadrature on a cell that does not touch the front but may lie close to
 /// it (level sets `ls` at its vertices): red-refined towards the front
 /// while a piece's gap to the front is under `gap_ratio` times its own
@@ -348,7 +351,7 @@ pub fn near_front_rule(
     ls: &[[f64; 2]; 4],
     depth: usize,
     gap_ratio: f64,
-    leaf: &dyn Fn(&[Point3<f64>; 4], &mut Vec<PhysicalPoint>),
+    leaf: &LeafRule,
     out: &mut Vec<PhysicalPoint>,
 ) {
     let diam = (0..4)
@@ -523,7 +526,10 @@ mod tests {
         ];
         let vol = crate::mesh::tet_volume(&v).abs();
         let kids = red_children(&v, &v.map(|p| p.coords), |a, b| (a + b) * 0.5);
-        let total: f64 = kids.iter().map(|(c, _)| crate::mesh::tet_volume(c).abs()).sum();
+        let total: f64 = kids
+            .iter()
+            .map(|(c, _)| crate::mesh::tet_volume(c).abs())
+            .sum();
         assert!((total - vol).abs() < 1e-14 * vol, "{total} {vol}");
         for (c, f) in &kids {
             assert!(crate::mesh::tet_volume(c).abs() > 0.05 * vol);
