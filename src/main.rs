@@ -53,13 +53,13 @@ enum Command {
         #[arg(long)]
         corotational: bool,
     },
-    /// The stability stress suite: cuts near nodes, ν → 0.5, dt sweep, 10⁴ undamped steps,
+    /// The stability stress suite: cuts near nodes, crack fronts near nodes, edges and faces, ν → 0.5, dt sweep, 10⁴ undamped steps,
     /// a freed fragment falling and tumbling, 90°/180° twists, inverted elements.
     /// Each row has a pass/fail criterion; exits non-zero if one fails.
     Stress {
         #[arg(long, default_value = "reports/data/stress.csv")]
         csv: PathBuf,
-        /// Run only the families whose name contains this (near-node, poisson, dt, long,
+        /// Run only the families whose name contains this (near-node, front-near, poisson, dt, long,
         /// fragment, rotation, inverted); the CSV is then not written.
         #[arg(long, default_value = "")]
         only: String,

@@ -21,7 +21,10 @@ pub struct Plan {
     pub elements: usize,
     pub nodes: usize,
     pub dofs: usize,
-    pub enriched: usize,
+    /// Heaviside-enriched nodes (3 DOFs each).
+    pub heaviside: usize,
+    /// Tip-enriched nodes (branch functions, 12 DOFs each).
+    pub tip: usize,
     pub free: usize,
     /// Seconds: selections, cut set-up, element data + pattern.
     pub times: [f64; 3],
@@ -153,7 +156,8 @@ impl Plan {
             elements,
             nodes: model.mesh.n_nodes(),
             dofs: model.n_dofs(),
-            enriched: model.n_enriched(),
+            heaviside: model.cut.as_ref().map_or(0, |c| c.n_heaviside()),
+            tip: model.cut.as_ref().map_or(0, |c| c.n_tip()),
             free: model.n_free,
             times,
         }
@@ -179,8 +183,8 @@ impl fmt::Display for Plan {
         }
         write!(
             f,
-            "size: {} elements, {} nodes, {} DOFs ({} enriched nodes), {} free DOFs",
-            self.elements, self.nodes, self.dofs, self.enriched, self.free
+            "size: {} elements, {} nodes, {} DOFs ({} Heaviside-, {} tip-enriched nodes), {} free DOFs",
+            self.elements, self.nodes, self.dofs, self.heaviside, self.tip, self.free
         )
     }
 }
