@@ -1,0 +1,732 @@
+//! Code verification: exact solutions run through the solver, no reference
+//! software. Two cases, each at several levels, with relative L2 and energy
+//! errors and the orders they give beside the orders theory expects:
+//!
+//! - [`ThroughCut`], a manufactured solution with a jump: a smooth field on
+//!   each side of an oblique plane that cuts the unit box completely (a
+//!   different field on each side), body force f = −div σ and cut-face
+//!   traction t = σ n from the field (analytic, [`SmoothField`]), the field
+//!   imposed on the whole outer boundary. X-FEM Heaviside Tet4 and Tet10:
+//!   the enriched space holds each side's interpolant, so the orders are the
+//!   smooth ones, 2 / 1 (Tet4) and 3 / 2 (Tet10) in L2 / energy.
+//! - [`WilliamsFront`], the near-front field: Williams' mode I+II (plane
+//!   strain) + III field around a straight front crossing the box obliquely
+//!   (an exact solution of 3-D linear elasticity with traction-free crack
+//!   faces), imposed on the whole outer boundary, with geometric tip,
+//!   topological tip and extended cuts (issue 11).
+//!
+//! [`run_study`] runs every [`Variant`]; rows go to `reports/data/exact.csv`.
+
+use crate::assembly::{field_load, FieldLoadAt};
+use crate::cut::{setup_cut, CutInput, CutSetup, FrontMode, PlanarPatch};
+use crate::front::{branch_with_gradients, N_BRANCH};
+use crate::io::csv::{read_rows, sci, write_rows};
+use crate::io::IoError;
+use crate::material::{Lame, Material};
+use crate::mesh::{box_mesh, ElementKind, TetMesh, TET10_EDGES};
+use crate::model::{Formulation, Model, ModelInput};
+use crate::solve::Cholesky;
+use crate::statics::{solve_static, StaticOptions};
+use crate::study::StudyError;
+use nalgebra::{Matrix3, Point3, Vector3};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+use std::time::Instant;
+
+/// The material of both cases (unit box, unit Young's modulus).
+pub const MATERIAL: Material = Material {
+    young: 1.0,
+    poisson: 0.3,
+    density: 1.0,
+};
+
+/// The profile g of a ridge term a g(k·x + p).
+#[derive(Debug, Clone, Copy)]
+pub enum Profile {
+    Sin,
+    Exp,
+    /// g(s) = sⁿ.
+    Power(i32),
+}
+
+impl Profile {
+    /// g, g′, g″ at s.
+    pub fn eval(self, s: f64) -> [f64; 3] {
+        match self {
+            Profile::Sin => [s.sin(), s.cos(), -s.sin()],
+            Profile::Exp => [s.exp(); 3],
+            Profile::Power(n) => {
+                let f = f64::from(n);
+                let p = |k: i32| if k < 0 { 0.0 } else { s.powi(k) };
+                [p(n), f * p(n - 1), f * (f - 1.0) * p(n - 2)]
+            }
+        }
+    }
+}
+
+/// One ridge term u = a g(k·x + p): ∇u = g′ a kᵀ, ∂²u_i/∂x_j∂x_l = g″ a_i k_j k_l.
+#[derive(Debug, Clone, Copy)]
+pub struct Ridge {
+    pub a: Vector3<f64>,
+    pub k: Vector3<f64>,
+    pub p: f64,
+    pub g: Profile,
+}
+
+/// A smooth displacement field: a sum of ridge terms, with its gradient,
+/// stress and the body force that keeps it in equilibrium, all in closed form.
+#[derive(Debug, Clone)]
+pub struct SmoothField {
+    pub terms: Vec<Ridge>,
+}
+
+impl SmoothField {
+    pub fn value(&self, x: &Point3<f64>) -> Vector3<f64> {
+        self.terms.iter().fold(Vector3::zeros(), |s, t| {
+            s + t.a * t.g.eval(t.k.dot(&x.coords) + t.p)[0]
+        })
+    }
+
+    /// ∇u (rows: components of u, columns: ∂/∂x_j).
+    pub fn gradient(&self, x: &Point3<f64>) -> Matrix3<f64> {
+        self.terms.iter().fold(Matrix3::zeros(), |s, t| {
+            s + t.a * t.k.transpose() * t.g.eval(t.k.dot(&x.coords) + t.p)[1]
+        })
+    }
+
+    /// f = −div σ(u) for linear elasticity (seed eq. 9 with σ = λ tr ε I + 2μ ε):
+    /// per term −g″ [(λ + μ)(a·k) k + μ |k|² a].
+    pub fn body_force(&self, x: &Point3<f64>, lame: &Lame) -> Vector3<f64> {
+        self.terms.iter().fold(Vector3::zeros(), |s, t| {
+            let g2 = t.g.eval(t.k.dot(&x.coords) + t.p)[2];
+            s - (t.k * ((lame.lambda + lame.mu) * t.a.dot(&t.k))
+                + t.a * (lame.mu * t.k.norm_squared()))
+                * g2
+        })
+    }
+}
+
+/// Linear-elastic stress of a displacement gradient.
+pub fn stress(gu: &Matrix3<f64>, lame: &Lame) -> Matrix3<f64> {
+    let eps = (gu + gu.transpose()) * 0.5;
+    Matrix3::identity() * (lame.lambda * eps.trace()) + eps * (2.0 * lame.mu)
+}
+
+/// Strain energy density ½ ε:σ of a displacement gradient.
+pub fn energy_density(gu: &Matrix3<f64>, lame: &Lame) -> f64 {
+    let eps = (gu + gu.transpose()) * 0.5;
+    lame.mu * eps.norm_squared() + 0.5 * lame.lambda * eps.trace().powi(2)
+}
+
+/// Nodes of the unit box's boundary.
+fn on_boundary(p: &Point3<f64>) -> bool {
+    (0..3).any(|c| p[c].abs() < 1e-12 || (p[c] - 1.0).abs() < 1e-12)
+}
+
+/// A structured mesh of [0,1]³ (6 tets per cube), interior nodes jittered by up to `jitter` h.
+pub fn unit_box(div: usize, kind: ElementKind, jitter: f64) -> TetMesh {
+    let mut m = box_mesh(Point3::origin(), Point3::new(1.0, 1.0, 1.0), [div; 3]);
+    let h = 1.0 / div as f64;
+    let mut seed: u64 = 0x2545_f491_4f6c_dd1d;
+    let mut rnd = || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    };
+    for p in m.nodes.iter_mut() {
+        let d = Vector3::new(rnd(), rnd(), rnd()) * (jitter * h);
+        if !on_boundary(p) {
+            *p += d;
+        }
+    }
+    match kind {
+        ElementKind::Tet4 => m,
+        ElementKind::Tet10 => m.to_tet10(),
+    }
+}
+
+/// A plane patch through `c` with unit normal `n`, reaching 3 beyond the unit box.
+fn plane_patch(c: Point3<f64>, n: Vector3<f64>) -> PlanarPatch {
+    let t0 = if n.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
+    let t1 = (t0 - n * n.dot(&t0)).normalize();
+    let t2 = n.cross(&t1);
+    PlanarPatch {
+        origin: c - t1 * 3.0 - t2 * 3.0,
+        u: t1 * 6.0,
+        v: t2 * 6.0,
+    }
+}
+
+/// The manufactured solution with a jump: `plus` where n·(x − c) ≥ 0, `minus` elsewhere.
+#[derive(Debug, Clone)]
+pub struct ThroughCut {
+    pub c: Point3<f64>,
+    pub n: Vector3<f64>,
+    pub plus: SmoothField,
+    pub minus: SmoothField,
+}
+
+impl Default for ThroughCut {
+    fn default() -> Self {
+        ThroughCut::new()
+    }
+}
+
+impl ThroughCut {
+    /// The plane n ∝ (0.3, 1, 0.2) through (0.5, 0.47, 0.52) (it leaves the box
+    /// through its four side faces); polynomial + trigonometric on the + side,
+    /// exponential + trigonometric + offset on the − side.
+    pub fn new() -> ThroughCut {
+        let v = Vector3::new;
+        ThroughCut {
+            c: Point3::new(0.5, 0.47, 0.52),
+            n: v(0.3, 1.0, 0.2).normalize(),
+            plus: SmoothField {
+                terms: vec![
+                    Ridge {
+                        a: v(1.0, 0.4, -0.6),
+                        k: v(1.3, -0.7, 0.9) * 2.0,
+                        p: 0.2,
+                        g: Profile::Sin,
+                    },
+                    Ridge {
+                        a: v(0.3, -0.2, 0.5),
+                        k: v(0.5, 0.8, -0.4),
+                        p: 0.1,
+                        g: Profile::Power(3),
+                    },
+                    Ridge {
+                        a: v(-0.2, 0.6, 0.1),
+                        k: v(0.9, 0.2, 0.7),
+                        p: -0.3,
+                        g: Profile::Power(2),
+                    },
+                ],
+            },
+            minus: SmoothField {
+                terms: vec![
+                    Ridge {
+                        a: v(-0.4, 0.9, 0.2),
+                        k: v(0.6, -0.3, 0.8),
+                        p: 0.0,
+                        g: Profile::Exp,
+                    },
+                    Ridge {
+                        a: v(0.2, 0.1, 0.7),
+                        k: v(-1.1, 2.0, 0.4) * 1.5,
+                        p: 0.3,
+                        g: Profile::Sin,
+                    },
+                    Ridge {
+                        a: v(0.3, -0.5, 0.4),
+                        k: Vector3::zeros(),
+                        p: 1.0,
+                        g: Profile::Power(0),
+                    },
+                ],
+            },
+        }
+    }
+
+    pub fn patch(&self) -> PlanarPatch {
+        plane_patch(self.c, self.n)
+    }
+
+    /// The signed distance to the plane.
+    pub fn level_set(&self, x: &Point3<f64>) -> f64 {
+        self.n.dot(&(x - self.c))
+    }
+
+    /// The field of side `side` (±1; 0: the side x lies on).
+    pub fn field(&self, x: &Point3<f64>, side: i8) -> &SmoothField {
+        let side = if side != 0 {
+            side
+        } else if self.level_set(x) >= 0.0 {
+            1
+        } else {
+            -1
+        };
+        if side > 0 {
+            &self.plus
+        } else {
+            &self.minus
+        }
+    }
+
+    /// Exact displacement and gradient at x seen from `side`.
+    pub fn exact(&self, x: &Point3<f64>, side: i8) -> (Vector3<f64>, Matrix3<f64>) {
+        let f = self.field(x, side);
+        (f.value(x), f.gradient(x))
+    }
+
+    /// Body force or cut-face traction σ n_out of side `side` at x.
+    pub fn load(
+        &self,
+        x: &Point3<f64>,
+        side: i8,
+        at: FieldLoadAt<'_>,
+        lame: &Lame,
+    ) -> Vector3<f64> {
+        let f = self.field(x, side);
+        match at {
+            FieldLoadAt::Volume => f.body_force(x, lame),
+            FieldLoadAt::CutFace { normal } => stress(&f.gradient(x), lame) * normal,
+        }
+    }
+
+    /// Prescribed values on every boundary node: the standard DOFs the own
+    /// side's field, the Heaviside DOFs a_i = H_i (u_own − u_other)(x_i), so
+    /// that u_i + ψ a_i (ψ = (s − H_i)/2, eq. 58–59) is each side's field at
+    /// the node seen from either side.
+    pub fn boundary_values(
+        &self,
+        mesh: &TetMesh,
+        cut: &CutSetup,
+    ) -> Vec<(usize, [Option<f64>; 3])> {
+        let n_nodes = mesh.n_nodes();
+        let mut fixed = Vec::new();
+        for (i, p) in mesh.nodes.iter().enumerate() {
+            if !on_boundary(p) {
+                continue;
+            }
+            let side = cut.node_side[i];
+            let own = self.exact(p, side).0;
+            fixed.push((i, own.map(Some).into()));
+            if let Some(j) = cut.enriched[i] {
+                let a = (own - self.exact(p, -side).0) * f64::from(side);
+                fixed.push((n_nodes + j, a.map(Some).into()));
+            }
+        }
+        fixed
+    }
+}
+
+/// The straight front: a line through `c` along `t` in the plane with normal
+/// `n`; the crack lies behind it (−m side, m = n × t).
+#[derive(Debug, Clone)]
+pub struct WilliamsFront {
+    pub c: Point3<f64>,
+    pub n: Vector3<f64>,
+    pub t: Vector3<f64>,
+    pub m: Vector3<f64>,
+    /// Williams coefficients b_k of the branch functions F_k (global frame).
+    pub b: [Vector3<f64>; N_BRANCH],
+}
+
+impl Default for WilliamsFront {
+    fn default() -> Self {
+        WilliamsFront::new()
+    }
+}
+
+impl WilliamsFront {
+    /// K_I = 1, K_II = 0.7, K_III = 0.5 about a front through (0.513, 0.479, 0.507).
+    pub fn new() -> WilliamsFront {
+        let c = Point3::new(0.513, 0.479, 0.507);
+        let n = Vector3::new(0.15, 1.0, 0.2).normalize();
+        let t0 = Vector3::new(0.1, 0.05, 1.0);
+        let t = (t0 - n * n.dot(&t0)).normalize();
+        let m = n.cross(&t);
+        let mu = Lame::from(MATERIAL).mu;
+        let kappa = 3.0 - 4.0 * MATERIAL.poisson;
+        let s = (2.0 * std::f64::consts::PI).sqrt();
+        let (k1, k2, k3) = (1.0, 0.7, 0.5);
+        let (c1, c2, c3) = (k1 / (2.0 * mu) / s, k2 / (2.0 * mu) / s, 2.0 * k3 / mu / s);
+        // Local frame (x = m ahead, y = n normal, z = t along the front):
+        // mode I  u_x = c1((κ−1)F2 + F3), u_y = c1((κ+1)F1 − F4);
+        // mode II u_x = c2((κ+1)F1 + F4), u_y = c2(−(κ−1)F2 + F3); mode III u_z = c3 F1.
+        let local = [
+            Vector3::new(c2 * (kappa + 1.0), c1 * (kappa + 1.0), c3),
+            Vector3::new(c1 * (kappa - 1.0), -c2 * (kappa - 1.0), 0.0),
+            Vector3::new(c1, c2, 0.0),
+            Vector3::new(c2, -c1, 0.0),
+        ];
+        let r = Matrix3::from_columns(&[m, n, t]);
+        WilliamsFront {
+            c,
+            n,
+            t,
+            m,
+            b: local.map(|v| r * v),
+        }
+    }
+
+    /// The crack: the half plane behind the front (reaching 3 beyond the box).
+    pub fn patch(&self) -> PlanarPatch {
+        let l = 3.0;
+        PlanarPatch {
+            origin: self.c - self.t * l - self.m * l,
+            u: self.t * (2.0 * l),
+            v: self.m * l,
+        }
+    }
+
+    /// (φ, ψ): distance to the crack plane and, in it, to the front.
+    pub fn level_sets(&self, x: &Point3<f64>) -> (f64, f64) {
+        (self.n.dot(&(x - self.c)), self.m.dot(&(x - self.c)))
+    }
+
+    /// Exact displacement and gradient at x seen from `side` (0: from φ's sign).
+    pub fn exact(&self, x: &Point3<f64>, side: i8) -> (Vector3<f64>, Matrix3<f64>) {
+        let (f, g) = self.level_sets(x);
+        let (v, gr) = branch_with_gradients(f, g, &self.n, &self.m, side);
+        let mut u = Vector3::zeros();
+        let mut gu = Matrix3::zeros();
+        for k in 0..N_BRANCH {
+            u += self.b[k] * v[k];
+            gu += self.b[k] * gr[k].transpose();
+        }
+        (u, gu)
+    }
+
+    /// The standard DOF value at node `i` that makes u_h(x_i) = u(x_i): the
+    /// exact value, less, at a Tet10 mid-node, what the tip functions of its
+    /// edge's tip-enriched vertices add there: ½ Σ_v (F(x_i) − F(x_v)) b.
+    pub fn standard_value(
+        &self,
+        mesh: &TetMesh,
+        cut: &CutSetup,
+        edges: &[Option<(usize, usize)>],
+        i: usize,
+    ) -> Vector3<f64> {
+        let x = mesh.nodes[i];
+        let side = cut.node_side[i];
+        let mut u = self.exact(&x, side).0;
+        if let Some((a, b)) = edges[i] {
+            for v in [a, b] {
+                if cut.tip[v].is_some() {
+                    u -= (self.exact(&x, side).0 - self.exact(&mesh.nodes[v], cut.node_side[v]).0)
+                        * 0.5;
+                }
+            }
+        }
+        u
+    }
+
+    /// Prescribed values on every boundary node: standard DOFs the exact nodal
+    /// value, Heaviside DOFs the jump to the other side's continuation
+    /// (u_other = −u_i: every branch function changes sign under θ → θ − 2π),
+    /// tip DOFs the Williams coefficients b_k.
+    pub fn boundary_values(
+        &self,
+        mesh: &TetMesh,
+        cut: &CutSetup,
+    ) -> Vec<(usize, [Option<f64>; 3])> {
+        let n_nodes = mesh.n_nodes();
+        let edges = mid_edges(mesh);
+        let mut fixed = Vec::new();
+        for (i, p) in mesh.nodes.iter().enumerate() {
+            if !on_boundary(p) {
+                continue;
+            }
+            let side = cut.node_side[i];
+            let u = self.standard_value(mesh, cut, &edges, i);
+            fixed.push((i, u.map(Some).into()));
+            if let Some(j) = cut.enriched[i] {
+                let a = u * (2.0 * f64::from(side));
+                fixed.push((n_nodes + j, a.map(Some).into()));
+            }
+            if let Some(t) = cut.tip[i] {
+                for k in 0..N_BRANCH {
+                    fixed.push((
+                        n_nodes + cut.n_enriched + N_BRANCH * t + k,
+                        self.b[k].map(Some).into(),
+                    ));
+                }
+            }
+        }
+        fixed
+    }
+}
+
+/// Per node, the vertices of the edge it is the mid-node of (Tet10).
+pub fn mid_edges(mesh: &TetMesh) -> Vec<Option<(usize, usize)>> {
+    let mut out = vec![None; mesh.n_nodes()];
+    if mesh.kind == ElementKind::Tet10 {
+        for e in 0..mesh.n_elements() {
+            let c = mesh.element(e);
+            for (k, &(a, b)) in TET10_EDGES.iter().enumerate() {
+                out[c[4 + k]] = Some((c[a], c[b]));
+            }
+        }
+    }
+    out
+}
+
+/// Relative L2 and energy errors of `d` against `exact` (value, gradient by
+/// point and side), integrated with [`Model::field_points`]; a point of an
+/// element the cut does not enrich has side 0.
+pub fn relative_errors(
+    model: &Model,
+    d: &[f64],
+    exact: impl Fn(&Point3<f64>, i8) -> (Vector3<f64>, Matrix3<f64>),
+) -> (f64, f64) {
+    let lame = Lame::from(model.material);
+    let (mut e2, mut u2, mut ee, mut ue) = (0.0, 0.0, 0.0, 0.0);
+    for e in 0..model.mesh.n_elements() {
+        for (x, w, side) in model.field_points(e) {
+            let (uh, gh) = model.field_at(d, e, &x, side);
+            let (u, g) = exact(&x, side);
+            e2 += w * (uh - u).norm_squared();
+            u2 += w * u.norm_squared();
+            ee += w * energy_density(&(gh - g), &lame);
+            ue += w * energy_density(&g, &lame);
+        }
+    }
+    ((e2 / u2).sqrt(), (ee / ue).sqrt())
+}
+
+/// Which exact solution.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Case {
+    ThroughCut,
+    NearFront,
+}
+
+impl Case {
+    pub fn name(self) -> &'static str {
+        match self {
+            Case::ThroughCut => "through_cut",
+            Case::NearFront => "near_front",
+        }
+    }
+}
+
+/// One variant of a case: element, cut treatment, levels and the orders
+/// theory expects (L2, energy; `None` where there is no clean rate).
+#[derive(Debug, Clone)]
+pub struct Variant {
+    pub case: Case,
+    pub name: &'static str,
+    pub kind: ElementKind,
+    pub front: FrontMode,
+    pub tip_radius: Option<f64>,
+    /// Divisions per box edge, one per level.
+    pub divisions: Vec<usize>,
+    pub theory: (Option<f64>, Option<f64>),
+}
+
+/// The variants the report runs (a few minutes on 2 cores).
+pub fn study_variants() -> Vec<Variant> {
+    use ElementKind::{Tet10, Tet4};
+    let v = |case, name, kind, front, tip_radius, divisions: &[usize], theory| Variant {
+        case,
+        name,
+        kind,
+        front,
+        tip_radius,
+        divisions: divisions.to_vec(),
+        theory,
+    };
+    vec![
+        v(
+            Case::ThroughCut,
+            "xfem heaviside",
+            Tet4,
+            FrontMode::Extend,
+            None,
+            &[4, 6, 8, 12, 16],
+            (Some(2.0), Some(1.0)),
+        ),
+        v(
+            Case::ThroughCut,
+            "xfem heaviside",
+            Tet10,
+            FrontMode::Extend,
+            None,
+            &[2, 3, 4, 6, 8],
+            (Some(3.0), Some(2.0)),
+        ),
+        v(
+            Case::NearFront,
+            "geometric tip R=0.2",
+            Tet4,
+            FrontMode::Tip,
+            Some(0.2),
+            &[6, 8, 12, 16, 24],
+            (Some(2.0), Some(1.0)),
+        ),
+        v(
+            Case::NearFront,
+            "geometric tip R=0.2",
+            Tet10,
+            FrontMode::Tip,
+            Some(0.2),
+            &[2, 3, 4, 6],
+            (Some(3.0), Some(2.0)),
+        ),
+        v(
+            Case::NearFront,
+            "topological tip",
+            Tet4,
+            FrontMode::Tip,
+            None,
+            &[6, 8, 12, 16],
+            (Some(1.0), Some(0.5)),
+        ),
+        v(
+            Case::NearFront,
+            "extend",
+            Tet4,
+            FrontMode::Extend,
+            None,
+            &[6, 8, 12, 16],
+            (None, None),
+        ),
+    ]
+}
+
+/// One solve of an exact-solution case: a row of `exact.csv`.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Row {
+    pub case: String,
+    pub variant: String,
+    pub element: String,
+    pub level: usize,
+    /// Divisions per edge of the unit box (h = 1/divisions).
+    pub divisions: usize,
+    pub elements: usize,
+    pub dofs: usize,
+    pub heaviside: usize,
+    pub tip: usize,
+    #[serde(rename = "l2_rel", serialize_with = "sci")]
+    pub l2: f64,
+    #[serde(rename = "energy_rel", serialize_with = "sci")]
+    pub energy: f64,
+    /// The orders theory expects (NaN: none).
+    #[serde(rename = "l2_theory", serialize_with = "sci")]
+    pub l2_theory: f64,
+    #[serde(rename = "energy_theory", serialize_with = "sci")]
+    pub energy_theory: f64,
+    #[serde(rename = "seconds", serialize_with = "sci")]
+    pub seconds: f64,
+}
+
+/// Solves `variant` at `divisions` and measures its errors.
+pub fn solve(variant: &Variant, level: usize) -> Result<Row, StudyError> {
+    let t0 = Instant::now();
+    let div = variant.divisions[level];
+    let mesh = unit_box(div, variant.kind, 0.0);
+    let lame = Lame::from(MATERIAL);
+    let through = ThroughCut::new();
+    let front = WilliamsFront::new();
+    let patch = match variant.case {
+        Case::ThroughCut => through.patch(),
+        Case::NearFront => front.patch(),
+    };
+    let cut = setup_cut(
+        &mesh,
+        &[CutInput {
+            surface: &patch,
+            snap: crate::cut::DEFAULT_SNAP,
+            front: variant.front,
+            tip_radius: variant.tip_radius,
+        }],
+    )?;
+    let fixed = match variant.case {
+        Case::ThroughCut => through.boundary_values(&mesh, &cut),
+        Case::NearFront => front.boundary_values(&mesh, &cut),
+    };
+    let (heaviside, tip) = (cut.n_heaviside(), cut.n_tip());
+    let elements = mesh.n_elements();
+    let mut model = Model::build(ModelInput {
+        mesh,
+        material: MATERIAL,
+        formulation: Formulation::Linear,
+        cut: Some(cut),
+        fixed,
+        gravity: None,
+        body_force: None,
+        tractions: &[],
+        need_mass: false,
+    })?;
+    if variant.case == Case::ThroughCut {
+        let load = field_load(&model, |x, side, at| through.load(x, side, at, &lame));
+        for (l, f) in model.load.iter_mut().zip(load) {
+            *l += f;
+        }
+    }
+    let mut chol = Cholesky::new(&model.pattern)?;
+    let sol = solve_static(&model, &mut chol, &StaticOptions::default())?;
+    let (l2, energy) = match variant.case {
+        Case::ThroughCut => relative_errors(&model, &sol.d, |x, s| through.exact(x, s)),
+        Case::NearFront => relative_errors(&model, &sol.d, |x, s| front.exact(x, s)),
+    };
+    Ok(Row {
+        case: variant.case.name().to_string(),
+        variant: variant.name.to_string(),
+        element: variant.kind.name().to_string(),
+        level,
+        divisions: div,
+        elements,
+        dofs: model.n_free,
+        heaviside,
+        tip,
+        l2,
+        energy,
+        l2_theory: variant.theory.0.unwrap_or(f64::NAN),
+        energy_theory: variant.theory.1.unwrap_or(f64::NAN),
+        seconds: t0.elapsed().as_secs_f64(),
+    })
+}
+
+/// Runs every level of every variant; `progress` is told each finished solve.
+pub fn run_study(
+    variants: &[Variant],
+    mut progress: impl FnMut(&Row),
+) -> Result<Vec<Row>, StudyError> {
+    let mut rows = Vec::new();
+    for v in variants {
+        for level in 0..v.divisions.len() {
+            let row = solve(v, level).map_err(|e| {
+                e.during(format!(
+                    "{} {} {} n = {}",
+                    v.case.name(),
+                    v.name,
+                    v.kind.name(),
+                    v.divisions[level]
+                ))
+            })?;
+            progress(&row);
+            rows.push(row);
+        }
+    }
+    Ok(rows)
+}
+
+/// Observed orders in h (L2, energy) between the last two levels of rows of one variant.
+pub fn last_orders(rows: &[&Row]) -> Option<(f64, f64)> {
+    let [.., a, b] = rows else {
+        return None;
+    };
+    let r = (b.divisions as f64 / a.divisions as f64).ln();
+    Some(((a.l2 / b.l2).ln() / r, (a.energy / b.energy).ln() / r))
+}
+
+/// Rows grouped by (case, variant, element), in their order of appearance.
+pub fn by_variant(rows: &[Row]) -> Vec<Vec<&Row>> {
+    let mut out: Vec<Vec<&Row>> = Vec::new();
+    for r in rows {
+        match out
+            .iter_mut()
+            .find(|g| g[0].case == r.case && g[0].variant == r.variant && g[0].element == r.element)
+        {
+            Some(g) => g.push(r),
+            None => out.push(vec![r]),
+        }
+    }
+    out
+}
+
+pub fn write_csv(path: &Path, rows: &[Row]) -> Result<(), IoError> {
+    write_rows(path, rows)
+}
+
+pub fn read_csv(path: &Path) -> Result<Vec<Row>, IoError> {
+    read_rows(path, false)
+}

@@ -1,0 +1,152 @@
+//! Code verification with exact solutions (issue 14): the manufactured
+//! solution with a jump across a through-cut and the near-front Williams
+//! field, through `xfem_cut::study::exact`, the same code the report runs.
+
+use nalgebra::{Matrix3, Point3, Vector3};
+use xfem_cut::assembly::{field_load, FieldLoadAt};
+use xfem_cut::cut::{setup_cut, CutInput, DEFAULT_SNAP};
+use xfem_cut::material::Lame;
+use xfem_cut::mesh::ElementKind;
+use xfem_cut::model::{Formulation, Model, ModelInput};
+use xfem_cut::study::exact::{
+    last_orders, run_study, stress, study_variants, unit_box, Case, Row, ThroughCut, MATERIAL,
+};
+
+#[test]
+fn the_manufactured_body_force_is_minus_div_sigma_by_nested_differences() {
+    let tc = ThroughCut::new();
+    let lame = Lame::from(MATERIAL);
+    let h = 1e-3;
+    for field in [&tc.plus, &tc.minus] {
+        for x in [
+            Point3::new(0.2, 0.3, 0.4),
+            Point3::new(0.7, 0.6, 0.1),
+            Point3::new(0.5, 0.9, 0.8),
+        ] {
+            // Gradient by central differences of the values.
+            let grad_fd = |y: &Point3<f64>| {
+                let mut g = Matrix3::zeros();
+                for j in 0..3 {
+                    let mut e = Vector3::zeros();
+                    e[j] = h;
+                    g.set_column(
+                        j,
+                        &((field.value(&(y + e)) - field.value(&(y - e))) / (2.0 * h)),
+                    );
+                }
+                g
+            };
+            let g = field.gradient(&x);
+            let gerr = (grad_fd(&x) - g).norm() / g.norm();
+            // div σ by central differences of the stress of the differenced gradient.
+            let mut div = Vector3::zeros();
+            for j in 0..3 {
+                let mut e = Vector3::zeros();
+                e[j] = h;
+                let sp = stress(&grad_fd(&(x + e)), &lame);
+                let sm = stress(&grad_fd(&(x - e)), &lame);
+                div += (sp.column(j) - sm.column(j)) / (2.0 * h);
+            }
+            let f = field.body_force(&x, &lame);
+            let ferr = (f + div).norm() / f.norm();
+            println!(
+                "at {:?}: gradient {gerr:.1e}, body force {ferr:.1e} (|f| = {:.3})",
+                x.coords,
+                f.norm()
+            );
+            assert!(gerr < 1e-5 && ferr < 1e-4, "{gerr:e} {ferr:e}");
+        }
+    }
+}
+
+#[test]
+fn field_load_integrates_volumes_and_both_cut_faces() {
+    // Partition of unity: the standard DOFs' loads sum to ∫ f dV and ∫ t dA.
+    // A constant body force over the unit box gives its volume; a constant
+    // traction on the + face of the plane gives its section's area, which for
+    // a plane y = y(x, z) over the whole (x, z) square is 1 / |n_y|.
+    let tc = ThroughCut::new();
+    let patch = tc.patch();
+    let area = 1.0 / tc.n.y.abs();
+    for (kind, div) in [
+        (ElementKind::Tet4, 3),
+        (ElementKind::Tet4, 5),
+        (ElementKind::Tet10, 3),
+    ] {
+        let mesh = unit_box(div, kind, 0.2);
+        let cut = setup_cut(&mesh, &[CutInput::extend(&patch, DEFAULT_SNAP)]).unwrap();
+        let model = Model::build(ModelInput {
+            mesh,
+            material: MATERIAL,
+            formulation: Formulation::Linear,
+            cut: Some(cut),
+            fixed: vec![],
+            gravity: None,
+            body_force: None,
+            tractions: &[],
+            need_mass: false,
+        })
+        .unwrap();
+        let n = model.mesh.n_nodes();
+        let total = |load: &[f64]| {
+            (0..n).fold(Vector3::zeros(), |s, i| {
+                s + Vector3::new(load[3 * i], load[3 * i + 1], load[3 * i + 2])
+            })
+        };
+        let volume = total(&field_load(&model, |_, _, at| match at {
+            FieldLoadAt::Volume => Vector3::new(1.0, 2.0, 3.0),
+            FieldLoadAt::CutFace { .. } => Vector3::zeros(),
+        }));
+        let face = total(&field_load(&model, |_, side, at| match at {
+            FieldLoadAt::CutFace { normal } if side > 0 => {
+                // The + side's outward normal is −n.
+                assert!((normal + tc.n).norm() < 1e-9, "{normal:?}");
+                Vector3::new(1.0, 0.0, 0.0)
+            }
+            FieldLoadAt::CutFace { normal } => {
+                assert!((normal - tc.n).norm() < 1e-9 && side < 0);
+                Vector3::zeros()
+            }
+            FieldLoadAt::Volume => Vector3::zeros(),
+        }));
+        println!(
+            "{kind:?} n {div}: ∫f {:?}, ∫t {:.15} (plane section {area:.15})",
+            volume.as_slice(),
+            face.x
+        );
+        assert!((volume - Vector3::new(1.0, 2.0, 3.0)).norm() < 1e-12);
+        assert!((face.x - area).abs() < 1e-12 && face.yz().norm() == 0.0);
+    }
+}
+
+fn print(rows: &[Row]) {
+    for r in rows {
+        println!(
+            "{} {} {} n {:2}: {:6} DOFs, {:4} Heaviside, {:4} tip: L2 {:.3e} energy {:.3e} ({:.1} s)",
+            r.case, r.variant, r.element, r.divisions, r.dofs, r.heaviside, r.tip, r.l2, r.energy, r.seconds
+        );
+    }
+}
+
+#[test]
+fn through_cut_jump_converges_at_the_smooth_rates() {
+    for v in study_variants()
+        .iter()
+        .filter(|v| v.case == Case::ThroughCut)
+    {
+        let rows = run_study(std::slice::from_ref(v), |_| {}).unwrap();
+        print(&rows);
+        let refs: Vec<&Row> = rows.iter().collect();
+        let (l2, en) = last_orders(&refs).unwrap();
+        let (tl2, ten) = (v.theory.0.unwrap(), v.theory.1.unwrap());
+        println!(
+            "{} {}: orders L2 {l2:.2} (theory {tl2}), energy {en:.2} (theory {ten})",
+            v.name,
+            v.kind.name()
+        );
+        assert!(
+            (l2 - tl2).abs() <= 0.2 && (en - ten).abs() <= 0.2,
+            "{l2} {en}"
+        );
+    }
+}
