@@ -150,3 +150,21 @@ fn through_cut_jump_converges_at_the_smooth_rates() {
         );
     }
 }
+
+#[test]
+fn near_front_geometric_tip_tet4_converges_at_the_rates_of_issue_11() {
+    // Issue 11: geometric tip enrichment, Tet4, L2 order ≥ 1.8 and energy ≥ 0.85
+    // (theory 2 / 1); the same variant the report's code-verification section runs.
+    let v = study_variants()
+        .into_iter()
+        .find(|v| {
+            v.case == Case::NearFront && v.kind == ElementKind::Tet4 && v.tip_radius.is_some()
+        })
+        .unwrap();
+    let rows = run_study(&[v], |_| {}).unwrap();
+    print(&rows);
+    let refs: Vec<&Row> = rows.iter().collect();
+    let (l2, en) = last_orders(&refs).unwrap();
+    println!("near front geometric tip tet4: orders L2 {l2:.2}, energy {en:.2}");
+    assert!(l2 >= 1.8 && en >= 0.85, "{l2} {en}");
+}
