@@ -489,6 +489,14 @@ pub enum Case {
 }
 
 impl Case {
+    /// What the case is, for the report.
+    pub fn description(self) -> &'static str {
+        match self {
+            Case::ThroughCut => "A manufactured solution with a jump: on each side of the oblique plane n ∝ (0.3, 1, 0.2) through (0.5, 0.47, 0.52), which cuts the box completely, its own smooth field (+ side: sine, cubic and quadratic ridge terms; − side: exponential and sine ridge terms and an offset). Body force f = −div σ in closed form and the traction σ n_out on both cut faces from each side's field (`assembly::field_load`); on the outer boundary the standard DOFs take the own side's field and the Heaviside DOFs the jump to the other side's field, so the discrete field equals the exact one at boundary nodes from both sides. X-FEM Heaviside holds each side's interpolant: theory 2 / 1 (Tet4) and 3 / 2 (Tet10) in L2 / energy.",
+            Case::NearFront => "Williams' near-front field (modes I + II in plane strain, K_I = 1, K_II = 0.7, and mode III, K_III = 0.5) around a straight front through (0.513, 0.479, 0.507) crossing the box obliquely, the crack behind it: an exact solution of 3-D linear elasticity with traction-free crack faces and no body force. Boundary values: standard DOFs the exact nodal values, Heaviside DOFs the jump, tip DOFs the Williams coefficients. Theory: geometric tip enrichment (every node within R = 0.2 of the front) restores the smooth rates (2 / 1 for Tet4, 3 / 2 for Tet10); topological tip enrichment (the nodes of front elements) is limited by the √r singularity outside the enriched band (1 / 0.5); `extend` lengthens the cut by up to an element and has no clean rate. Tet10 geometric is known to fall short: its blending elements are not corrected (issue 11).",
+        }
+    }
+
     pub fn name(self) -> &'static str {
         match self {
             Case::ThroughCut => "through_cut",
@@ -506,80 +514,63 @@ pub struct Variant {
     pub kind: ElementKind,
     pub front: FrontMode,
     pub tip_radius: Option<f64>,
+    /// Interior nodes moved by up to this fraction of h (0: structured).
+    pub jitter: f64,
     /// Divisions per box edge, one per level.
     pub divisions: Vec<usize>,
-    pub theory: (Option<f64>, Option<f64>),
+    pub theory: Theory,
 }
 
-/// The variants the report runs (a few minutes on 2 cores).
+/// Orders theory expects in (L2, energy); `None` where there is no clean rate.
+pub type Theory = (Option<f64>, Option<f64>);
+
+/// The variants the report runs (about half a minute on 2 cores); "jittered":
+/// interior nodes moved by up to 0.2 h.
 pub fn study_variants() -> Vec<Variant> {
+    /// Case, name, element, front, tip radius, divisions, theory (L2, energy).
+    type Entry = (
+        Case,
+        &'static str,
+        ElementKind,
+        FrontMode,
+        Option<f64>,
+        &'static [usize],
+        Theory,
+    );
     use ElementKind::{Tet10, Tet4};
-    let v = |case, name, kind, front, tip_radius, divisions: &[usize], theory| Variant {
-        case,
-        name,
-        kind,
-        front,
-        tip_radius,
-        divisions: divisions.to_vec(),
-        theory,
-    };
-    vec![
-        v(
-            Case::ThroughCut,
-            "xfem heaviside",
-            Tet4,
-            FrontMode::Extend,
-            None,
-            &[4, 6, 8, 12, 16],
-            (Some(2.0), Some(1.0)),
-        ),
-        v(
-            Case::ThroughCut,
-            "xfem heaviside",
-            Tet10,
-            FrontMode::Extend,
-            None,
-            &[2, 3, 4, 6, 8],
-            (Some(3.0), Some(2.0)),
-        ),
-        v(
-            Case::NearFront,
-            "geometric tip R=0.2",
-            Tet4,
-            FrontMode::Tip,
-            Some(0.2),
-            &[6, 8, 12, 16, 24],
-            (Some(2.0), Some(1.0)),
-        ),
-        v(
-            Case::NearFront,
-            "geometric tip R=0.2",
-            Tet10,
-            FrontMode::Tip,
-            Some(0.2),
-            &[2, 3, 4, 6],
-            (Some(3.0), Some(2.0)),
-        ),
-        v(
-            Case::NearFront,
-            "topological tip",
-            Tet4,
-            FrontMode::Tip,
-            None,
-            &[6, 8, 12, 16],
-            (Some(1.0), Some(0.5)),
-        ),
-        v(
-            Case::NearFront,
-            "extend",
-            Tet4,
-            FrontMode::Extend,
-            None,
-            &[6, 8, 12, 16],
-            (None, None),
-        ),
-    ]
+    use FrontMode::{Extend, Tip};
+    let (t4, t10) = ((Some(2.0), Some(1.0)), (Some(3.0), Some(2.0)));
+    #[rustfmt::skip]
+    let table: [Entry; 9] = [
+        (Case::ThroughCut, "xfem heaviside", Tet4, Extend, None, &[4, 6, 8, 12, 16], t4),
+        (Case::ThroughCut, "xfem heaviside", Tet10, Extend, None, &[2, 3, 4, 6, 8], t10),
+        (Case::ThroughCut, "xfem heaviside jittered", Tet4, Extend, None, &[4, 6, 8, 12, 16], t4),
+        (Case::ThroughCut, "xfem heaviside jittered", Tet10, Extend, None, &[2, 3, 4, 6, 8], t10),
+        (Case::NearFront, "geometric tip R=0.2", Tet4, Tip, Some(0.2), &[6, 8, 12, 16, 24], t4),
+        (Case::NearFront, "geometric tip R=0.2", Tet10, Tip, Some(0.2), &[2, 3, 4, 6], t10),
+        (Case::NearFront, "geometric tip R=0.2 jittered", Tet4, Tip, Some(0.2), &[6, 8, 12, 16], t4),
+        (Case::NearFront, "topological tip", Tet4, Tip, None, &[6, 8, 12, 16], (Some(1.0), Some(0.5))),
+        (Case::NearFront, "extend", Tet4, Extend, None, &[6, 8, 12, 16], (None, None)),
+    ];
+    table
+        .into_iter()
+        .map(
+            |(case, name, kind, front, tip_radius, divisions, theory)| Variant {
+                case,
+                name,
+                kind,
+                front,
+                tip_radius,
+                jitter: if name.contains("jittered") { 0.2 } else { 0.0 },
+                divisions: divisions.to_vec(),
+                theory,
+            },
+        )
+        .collect()
 }
+
+/// Where the study writes its rows, relative to `reports/`.
+pub const CSV: &str = "data/exact.csv";
 
 /// One solve of an exact-solution case: a row of `exact.csv`.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
@@ -611,7 +602,7 @@ pub struct Row {
 pub fn solve(variant: &Variant, level: usize) -> Result<Row, StudyError> {
     let t0 = Instant::now();
     let div = variant.divisions[level];
-    let mesh = unit_box(div, variant.kind, 0.0);
+    let mesh = unit_box(div, variant.kind, variant.jitter);
     let lame = Lame::from(MATERIAL);
     let through = ThroughCut::new();
     let front = WilliamsFront::new();
@@ -721,6 +712,21 @@ pub fn by_variant(rows: &[Row]) -> Vec<Vec<&Row>> {
         }
     }
     out
+}
+
+/// The hash of what the study's rows depend on: this executable (the solver
+/// and the study code) and the variants run. `xfem-cut converge --exact`
+/// keeps it next to the CSV (`exact.csv.hash`) and skips a run whose inputs
+/// have not changed, as `make refs` does for the references.
+pub fn inputs_hash(variants: &[Variant]) -> Result<String, StudyError> {
+    use std::hash::{Hash, Hasher};
+    let exe = std::env::current_exe()
+        .map_err(|e| IoError::os(Path::new("the running executable"), "locate", e))?;
+    let bytes = std::fs::read(&exe).map_err(|e| IoError::os(&exe, "read", e))?;
+    let mut h = std::hash::DefaultHasher::new();
+    bytes.hash(&mut h);
+    format!("{variants:?}").hash(&mut h);
+    Ok(format!("{:016x}", h.finish()))
 }
 
 pub fn write_csv(path: &Path, rows: &[Row]) -> Result<(), IoError> {

@@ -55,6 +55,13 @@ pub enum StudyError {
         #[source]
         source: Box<StudyError>,
     },
+    /// A plot of the report could not be drawn or written.
+    #[error("{}: cannot draw the plot: {source}", path.display())]
+    Plot {
+        path: std::path::PathBuf,
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
     /// The study's own precondition is not met (no reference, no cut, …).
     #[error("{0}")]
     Precondition(String),
