@@ -45,6 +45,8 @@ pub enum StudyError {
     #[error(transparent)]
     Verify(#[from] verify::VerifyError),
     #[error(transparent)]
+    SameMesh(#[from] reference::SameMeshError),
+    #[error(transparent)]
     Cut(#[from] CutError),
     #[error(transparent)]
     Model(#[from] ModelError),
