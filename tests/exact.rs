@@ -168,3 +168,48 @@ fn near_front_geometric_tip_tet4_converges_at_the_rates_of_issue_11() {
     println!("near front geometric tip tet4: orders L2 {l2:.2}, energy {en:.2}");
     assert!(l2 >= 1.8 && en >= 0.85, "{l2} {en}");
 }
+
+#[test]
+fn boundary_values_give_each_sides_field_at_boundary_nodes_from_both_sides() {
+    // The prescribed standard and Heaviside DOFs of a boundary node make
+    // u_i + ψ(s) a_i the exact field of side s at the node, for s = ±1, at
+    // every enriched boundary node (Tet10 mid-nodes included).
+    let tc = ThroughCut::new();
+    let patch = tc.patch();
+    for kind in [ElementKind::Tet4, ElementKind::Tet10] {
+        let mesh = unit_box(4, kind, 0.2);
+        let cut = setup_cut(&mesh, &[CutInput::extend(&patch, DEFAULT_SNAP)]).unwrap();
+        let fixed = tc.boundary_values(&mesh, &cut);
+        let model = Model::build(ModelInput {
+            mesh,
+            material: MATERIAL,
+            formulation: Formulation::Linear,
+            cut: Some(cut),
+            fixed,
+            gravity: None,
+            body_force: None,
+            tractions: &[],
+            need_mass: false,
+        })
+        .unwrap();
+        let mut d = vec![0.0; model.n_dofs()];
+        for p in &model.prescribed {
+            d[p.dof] = p.value;
+        }
+        let c = model.cut.as_ref().unwrap();
+        let (mut checked, mut worst) = (0, 0.0f64);
+        for (i, x) in model.mesh.nodes.iter().enumerate() {
+            let boundary = (0..3).any(|k| x[k].abs() < 1e-12 || (x[k] - 1.0).abs() < 1e-12);
+            if !boundary || c.enriched[i].is_none() {
+                continue;
+            }
+            for side in [1, -1] {
+                let u = model.node_displacement(&d, i, side);
+                worst = worst.max((u - tc.exact(x, side).0).norm());
+            }
+            checked += 1;
+        }
+        println!("{kind:?}: {checked} enriched boundary nodes, worst |u_h − u_side| {worst:.1e}");
+        assert!(checked > 10 && worst < 1e-14, "{checked} {worst:e}");
+    }
+}
