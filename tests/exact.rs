@@ -213,3 +213,52 @@ fn boundary_values_give_each_sides_field_at_boundary_nodes_from_both_sides() {
         assert!(checked > 10 && worst < 1e-14, "{checked} {worst:e}");
     }
 }
+
+#[test]
+fn the_precut_mesh_is_conforming_and_split_by_the_plane() {
+    // Its boundary is the box's six faces and both faces of the plane section
+    // (no face left unmatched between neighbours), every element on one side.
+    use xfem_cut::study::exact::precut_mesh;
+    let tc = ThroughCut::new();
+    let section = 1.0 / tc.n.y.abs();
+    for (div, jitter) in [(4, 0.0), (5, 0.2)] {
+        let mesh = unit_box(div, ElementKind::Tet4, jitter);
+        let (m, side) = precut_mesh(&mesh, |x| tc.level_set(x), ElementKind::Tet4);
+        let (mut outer, mut plane, mut stray) = (0.0, 0.0, 0);
+        for (f, _) in m.boundary_faces() {
+            let p = f.map(|i| m.nodes[i]);
+            let area = 0.5 * (p[1] - p[0]).cross(&(p[2] - p[0])).norm();
+            let on_box = (0..3).any(|c| {
+                p.iter().all(|x| x[c].abs() < 1e-12) || p.iter().all(|x| (x[c] - 1.0).abs() < 1e-12)
+            });
+            if on_box {
+                outer += area;
+            } else if p.iter().all(|x| tc.level_set(x).abs() < 1e-12) {
+                plane += area;
+            } else {
+                stray += 1;
+            }
+        }
+        let volume: f64 = (0..m.n_elements()).map(|e| m.volume(e)).sum();
+        let wrong_side = (0..m.n_elements())
+            .filter(|&e| {
+                let c = m
+                    .vertex_points(e)
+                    .iter()
+                    .fold(Vector3::zeros(), |s, p| s + p.coords)
+                    / 4.0;
+                let s = if tc.level_set(&c.into()) >= 0.0 {
+                    1
+                } else {
+                    -1
+                };
+                m.element(e).iter().any(|&i| side[i] != s)
+            })
+            .count();
+        println!("n {div} jitter {jitter}: {} tets, outer faces {outer:.15}, plane faces {plane:.15} (2 × {section:.15}), {stray} stray, volume {volume:.15}, {wrong_side} on the wrong side", m.n_elements());
+        assert_eq!(stray, 0);
+        assert_eq!(wrong_side, 0);
+        assert!((outer - 6.0).abs() < 1e-12 && (plane - 2.0 * section).abs() < 1e-12);
+        assert!((volume - 1.0).abs() < 1e-12);
+    }
+}
