@@ -161,10 +161,12 @@ pub fn evaluate(
     evaluate_damped(model, d, rot, ws, req, 0.0)
 }
 
-/// [`evaluate`] with `damping` × R K Rᵀ added to the requested tangent: the
-/// Newton matrix of a step with stiffness-proportional Rayleigh damping
-/// D = β_R R K Rᵀ, whose velocity derivative brings c₁γβ_R R K Rᵀ beside the
-/// exact tangent of the forces (seed section 3.5).
+/// [`evaluate`] with `damping` × R K Rᵀ added to the requested tangent, R the
+/// rotations the pass uses: the Newton matrix of a linear step with
+/// stiffness-proportional Rayleigh damping D = β_R K, whose velocity
+/// derivative brings γβ_R/(βΔt) K beside K (seed section 3.5). (Corotational
+/// steps hold the damping's rotations over the step and add its stiffness
+/// themselves: `dynamics`.)
 pub fn evaluate_damped(
     model: &Model,
     d: &[f64],
