@@ -40,6 +40,13 @@ pub enum LinearSolver {
     /// rotation of the rest state leaves the preconditioner exact for the
     /// lumped mass (R M Rᵀ = M). Refactorise only when CG needs more than `max_cg`.
     WarpedPcg { tolerance: f64, max_cg: usize },
+    /// Modified Newton on a lagged factorisation: K_eff is factorised at the
+    /// first iterate of every `every`-th step and kept for the steps between
+    /// (`every` = 1: once a step), and refactorised at the current iterate
+    /// when Newton has done `refactor_after` iterations on one factor within
+    /// a step. An iteration without refactorisation assembles no tangent:
+    /// forces, residual and two triangular solves.
+    Lagged { every: usize, refactor_after: usize },
 }
 
 /// Mass matrix used in the time integration.
@@ -448,8 +455,13 @@ pub struct Newmark<'m> {
     /// The rotations Rₙ at the start of the step (the damping's).
     rot_start: Rotations,
     /// β_R's stiffness Rₙ K Rₙᵀ of the step (lower CSC values; empty
-    /// unless corotational with stiffness damping).
+    /// unless corotational with stiffness damping), assembled when a step
+    /// first needs its Newton matrix.
     damping_k: Vec<f64>,
+    /// Whether `damping_k` is that of the current step's Rₙ.
+    damping_current: bool,
+    /// Steps begun since the last factorisation (the lagged factor's age).
+    steps_since_factor: usize,
     /// ‖f_ext‖ (a residual scale).
     load_norm: f64,
     /// Whether a factorisation of K_eff exists (current for linear scenes, maybe stale for PCG).
@@ -507,6 +519,8 @@ impl<'m> Newmark<'m> {
             } else {
                 Vec::new()
             },
+            damping_current: false,
+            steps_since_factor: 0,
             load_norm: norm(&model.load),
             factored: false,
             pcg: Pcg::new(model.n_free),
@@ -669,8 +683,20 @@ impl<'m> Newmark<'m> {
         let (factor_start, cg_start) = (self.chol.factorisations, self.pcg.iterations);
         let mut d = self.begin_step(t_new);
         let mut report = StepReport::default();
+        // Lagged factor: iterations of this step on the current factor.
+        let mut on_this_factor = 0;
         loop {
-            let need_tangent = !linear || !self.factored;
+            let need_tangent = match o.linear_solver {
+                LinearSolver::Lagged {
+                    every,
+                    refactor_after,
+                } if !linear => {
+                    !self.factored
+                        || (report.iterations == 0 && self.steps_since_factor >= every)
+                        || on_this_factor >= refactor_after
+                }
+                _ => !linear || !self.factored,
+            };
             let residual = self.residual(&d, need_tangent);
             report.residual = residual;
             if !residual.is_finite() {
@@ -744,6 +770,8 @@ impl<'m> Newmark<'m> {
                         other => other?,
                     }
                     self.factored = true;
+                    self.steps_since_factor = 0;
+                    on_this_factor = 0;
                     if let Some(w) = self.warp.as_mut() {
                         w.at_factor.copy_from_slice(&w.now);
                         w.relative.fill(Matrix3::identity());
@@ -757,6 +785,7 @@ impl<'m> Newmark<'m> {
                 }
             }
             report.iterations += 1;
+            on_this_factor += 1;
             // Linear: the solve is exact. One iteration: the linearly implicit scheme.
             if linear || o.max_iterations == 1 {
                 break;
@@ -768,6 +797,7 @@ impl<'m> Newmark<'m> {
         std::mem::swap(&mut self.state.a, &mut self.a_new);
         self.state.d = d;
         self.state.time = t_new;
+        self.steps_since_factor += 1;
         report.factorisations = self.chol.factorisations - factor_start;
         report.cg_iterations = self.pcg.iterations - cg_start;
         if self.state.d.iter().any(|x| !x.is_finite()) {
@@ -776,8 +806,7 @@ impl<'m> Newmark<'m> {
         Ok(report)
     }
 
-    /// Starts the step to `t_new`: keeps dₙ and the rotations Rₙ, assembles
-    /// the step's damping stiffness Rₙ K Rₙᵀ (corotational, β_R ≠ 0) and
+    /// Starts the step to `t_new`: keeps dₙ and the rotations Rₙ and
     /// returns the predictor (dₙ with the prescribed DOFs at their new values).
     fn begin_step(&mut self, t_new: f64) -> Vec<f64> {
         let model = self.model;
@@ -788,20 +817,7 @@ impl<'m> Newmark<'m> {
             d[p.dof] = ramp * p.value;
         }
         self.rot_start.0.copy_from_slice(&self.state.rotations.0);
-        if !self.damping_k.is_empty() {
-            evaluate(
-                model,
-                &d,
-                &mut self.rot_start,
-                &mut self.ws,
-                Request {
-                    forces: None,
-                    tangent: Some(&mut self.damping_k),
-                    update_rotations: false,
-                    exact_tangent: false,
-                },
-            );
-        }
+        self.damping_current = false;
         d
     }
 
@@ -878,6 +894,22 @@ impl<'m> Newmark<'m> {
     /// [`Newmark::residual`] (dv/dd = γ/(βΔt), da/dd = c₀).
     fn complete_tangent(&mut self) {
         let o = self.opts;
+        if !self.damping_k.is_empty() && !self.damping_current {
+            // Rₙ K Rₙᵀ: with the rotations held, the displacement is not used.
+            evaluate(
+                self.model,
+                &self.d_old,
+                &mut self.rot_start,
+                &mut self.ws,
+                Request {
+                    forces: None,
+                    tangent: Some(&mut self.damping_k),
+                    update_rotations: false,
+                    exact_tangent: false,
+                },
+            );
+            self.damping_current = true;
+        }
         let c_v = o.gamma / (o.beta * o.dt);
         let c0 = 1.0 / (o.beta * o.dt * o.dt);
         self.mass

@@ -237,18 +237,12 @@ fn without_stiffness_damping_newton_on_the_exact_tangent_is_quadratic() {
     assert!(2 * se < sc, "exact {se}, R K Rᵀ {sc}");
 }
 
-/// The step that reuses one factorisation (CG preconditioned by the warped
-/// factor, refactorising only when CG needs more than 25 iterations) follows
-/// the refactorising Newton step: 100 steps of bend_dynamic at level 0.
-#[test]
-fn the_warped_pcg_step_follows_the_refactorising_step() {
+/// 100 steps of bend_dynamic at level 0 with `linear_solver` beside the
+/// refactorising Newton step: (factorisations, CG iterations, Newton
+/// iterations, largest relative difference of d over the run).
+fn beside_direct(linear_solver: xfem_cut::dynamics::LinearSolver) -> (usize, usize, usize, f64) {
     use xfem_cut::dynamics::LinearSolver;
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/bend_dynamic.toml");
-    let scene = Scene::load(&path).unwrap();
-    let (model, _) = scene.build(scene.mesh(0).unwrap()).unwrap();
-    let Analysis::Dynamic { options, .. } = scene.analysis else {
-        panic!("dynamic")
-    };
+    let (model, options) = case("bend_dynamic.toml", ("", ""));
     let start = |linear_solver| {
         let o = DynamicOptions {
             linear_solver,
@@ -259,28 +253,62 @@ fn the_warped_pcg_step_follows_the_refactorising_step() {
         nm
     };
     let mut direct = start(LinearSolver::Direct);
-    let mut fast = start(LinearSolver::WarpedPcg {
-        tolerance: 1e-10,
-        max_cg: 25,
-    });
-    let (mut worst, mut factorisations, mut cg) = (0.0f64, 0, 0);
+    let mut fast = start(linear_solver);
+    let (mut worst, mut factorisations, mut cg, mut newton) = (0.0f64, 0, 0, 0);
     for _ in 0..100 {
         direct.step().unwrap();
         let r = fast.step().unwrap();
+        assert!(r.residual <= options.tolerance);
         factorisations += r.factorisations;
         cg += r.cg_iterations;
-        let norm = direct.state.d.iter().map(|x| x * x).sum::<f64>().sqrt();
-        let diff = (direct.state.d.iter())
+        newton += r.iterations;
+        let diff: Vec<f64> = (direct.state.d.iter())
             .zip(&fast.state.d)
-            .map(|(a, b)| (a - b).powi(2))
-            .sum::<f64>()
-            .sqrt();
-        worst = worst.max(diff / norm);
+            .map(|(a, b)| a - b)
+            .collect();
+        worst = worst.max(norm(&diff) / norm(&direct.state.d));
     }
+    (factorisations, cg, newton, worst)
+}
+
+/// The step that reuses one factorisation (CG preconditioned by the warped
+/// factor, refactorising only when CG needs more than 25 iterations) follows
+/// the refactorising Newton step: 100 steps of bend_dynamic at level 0.
+#[test]
+fn the_warped_pcg_step_follows_the_refactorising_step() {
+    use xfem_cut::dynamics::LinearSolver;
+    let (factorisations, cg, newton, worst) = beside_direct(LinearSolver::WarpedPcg {
+        tolerance: 1e-10,
+        max_cg: 25,
+    });
     println!(
-        "warped PCG: {factorisations} factorisations, {cg} CG iterations in 100 steps (direct: {}); max relative difference {worst:e}",
-        direct.factorisations()
+        "warped PCG: {factorisations} factorisations, {cg} CG iterations, {newton} Newton iterations in 100 steps; max relative difference {worst:e}"
     );
     assert!(worst < 1e-9, "{worst:e}");
     assert!(factorisations <= 5, "{factorisations}");
+}
+
+/// Modified Newton on a factor kept for k steps (refactorised after 8
+/// iterations on one factor): converges to the scene's tolerance every step
+/// and follows the refactorising step to the Newton tolerance's level, with
+/// about 1/k factorisations a step.
+#[test]
+fn the_lagged_factor_step_follows_the_refactorising_step() {
+    use xfem_cut::dynamics::LinearSolver;
+    for every in [1, 5, 20] {
+        let (factorisations, cg, newton, worst) = beside_direct(LinearSolver::Lagged {
+            every,
+            refactor_after: 8,
+        });
+        println!(
+            "lagged k = {every}: {factorisations} factorisations, {newton} Newton iterations in 100 steps; max relative difference {worst:e}"
+        );
+        assert_eq!(cg, 0);
+        assert!(worst < 1e-7, "k = {every}: {worst:e}");
+        assert!(factorisations >= 100 / every, "{factorisations}");
+        assert!(
+            factorisations <= 100 / every + 10,
+            "k = {every}: {factorisations}"
+        );
+    }
 }
