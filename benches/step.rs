@@ -10,10 +10,12 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use std::hint::black_box;
 use std::path::Path;
 use std::time::{Duration, Instant};
-use xfem_cut::assembly::{equation_shapes, evaluate, Request, Rotations, Workspace};
+use xfem_cut::assembly::{
+    element_data_pass, equation_shapes, evaluate, Request, Rotations, Workspace,
+};
 use xfem_cut::dynamics::{DynamicOptions, LinearSolver, Newmark};
 use xfem_cut::mesh::TetMesh;
-use xfem_cut::model::{Formulation, Model, NONE};
+use xfem_cut::model::{Formulation, Model};
 use xfem_cut::scene::{Analysis, Scene};
 use xfem_cut::solve::{Cholesky, Parallelism};
 use xfem_cut::study::fixtures::{beam_mesh, seed_beam};
@@ -126,41 +128,6 @@ fn benches(c: &mut Criterion) {
         );
     }
     g.finish();
-}
-
-/// One pass over what the corotational assembly reads and writes, without its
-/// arithmetic: each group's gradients and weight, the element's shape ids and
-/// nodal displacements, and its scatter map with one add per stored entry
-/// into the tangent values and per DOF into the forces — the memory-traffic
-/// floor of the assembly.
-fn element_data_pass(m: &Model, d: &[f64], f: &mut [f64], k: &mut [f64]) -> f64 {
-    let mut acc = 0.0;
-    for el in &m.elements {
-        let shapes = &m.shape_ids[el.shapes.clone()];
-        let n = shapes.len();
-        let mut u = 0.0;
-        for &s in shapes {
-            let s = 3 * s as usize;
-            u += d[s] + d[s + 1] + d[s + 2];
-        }
-        for g in el.groups.clone() {
-            let group = m.groups[g];
-            let grads = &m.grads[group.grads as usize..group.grads as usize + n];
-            acc += group.weight * u * grads.iter().map(|v| v.x + v.y + v.z).sum::<f64>();
-        }
-        for &s in shapes {
-            let s = 3 * s as usize;
-            f[s] += acc;
-            f[s + 1] += acc;
-            f[s + 2] += acc;
-        }
-        for &p in &m.scatter[el.scatter..el.scatter + 9 * n * n] {
-            if p != NONE {
-                k[p as usize] += acc;
-            }
-        }
-    }
-    acc
 }
 
 /// The assembly (rotations, forces, exact tangent) at 1 and 2 threads, and
