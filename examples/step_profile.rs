@@ -10,7 +10,9 @@
 //! floor, `assembly::element_data_pass`), the numeric factorisation of K_eff
 //! and one solve with it; then a whole step as the integrator takes it (from
 //! the state after 10 steps, restored before each) with its Newton
-//! iterations, and the step rebuilt from the parts.
+//! iterations, and the step rebuilt from the parts; last, 20 steps from that
+//! state with each linear solver (refactorising, warped PCG, lagged factor
+//! k = 5, 20).
 //!
 //! `cargo run --release --example step_profile` (all three), or
 //! `-- 6 12 24 [tet10]` for one beam.
@@ -20,7 +22,7 @@ use xfem_cut::assembly::{
     element_data_bytes, element_data_pass, equation_shapes, evaluate, tangent_product, Request,
     Workspace,
 };
-use xfem_cut::dynamics::{DynamicOptions, Newmark};
+use xfem_cut::dynamics::{DynamicOptions, LinearSolver, Newmark};
 use xfem_cut::model::{Formulation, Model};
 use xfem_cut::solve::{Cholesky, Parallelism};
 use xfem_cut::study::fixtures::{beam_mesh, seed_beam};
@@ -156,6 +158,59 @@ fn profile(div: [usize; 3], tet10: bool) {
         100.0 * iterations as f64 * solve / parts,
         assembly / floor
     );
+    modes(&m, &saved);
+}
+
+/// 20 consecutive steps from `state` with each linear solver: median ms a
+/// step, Newton iterations and factorisations a step.
+fn modes(m: &Model, state: &xfem_cut::dynamics::State) {
+    let lagged = |every| LinearSolver::Lagged {
+        every,
+        refactor_after: 8,
+    };
+    for (name, linear_solver) in [
+        ("refactorising Newton", LinearSolver::Direct),
+        (
+            "warped PCG",
+            LinearSolver::WarpedPcg {
+                tolerance: 1e-10,
+                max_cg: 50,
+            },
+        ),
+        ("lagged k = 5", lagged(5)),
+        ("lagged k = 20", lagged(20)),
+    ] {
+        let chol = Cholesky::fill_reducing(
+            &m.pattern,
+            Some(&equation_shapes(m)),
+            Parallelism::SEQUENTIAL,
+        )
+        .unwrap();
+        let opts = DynamicOptions {
+            linear_solver,
+            ..DynamicOptions::default()
+        };
+        let mut nm = Newmark::new(m, chol, opts).unwrap();
+        nm.state.clone_from(state);
+        let n = 20;
+        let (mut times, mut newton, mut facts, mut cg) = (Vec::new(), 0, 0, 0);
+        for _ in 0..n {
+            let t = Instant::now();
+            let r = nm.step().unwrap();
+            times.push(t.elapsed().as_secs_f64() * 1e3);
+            newton += r.iterations;
+            facts += r.factorisations;
+            cg += r.cg_iterations;
+        }
+        times.sort_by(f64::total_cmp);
+        println!(
+            "  {name:20}: {:.3} ms a step (median of {n}), {:.2} Newton, {:.1} CG, {:.2} factorisations a step",
+            times[n / 2],
+            newton as f64 / n as f64,
+            cg as f64 / n as f64,
+            facts as f64 / n as f64
+        );
+    }
 }
 
 fn main() {
