@@ -697,7 +697,7 @@ impl<'m> Newmark<'m> {
                 }
                 _ => !linear || !self.factored,
             };
-            let residual = self.residual(&d, need_tangent);
+            let residual = self.residual(&d);
             report.residual = residual;
             if !residual.is_finite() {
                 return Err(DynamicError::NotFinite(step_no));
@@ -717,7 +717,7 @@ impl<'m> Newmark<'m> {
                 break;
             }
             if need_tangent {
-                self.complete_tangent();
+                self.assemble_tangent(&d, exact);
             }
             if let Some(w) = self.warp.as_mut() {
                 w.update(model, &self.state.rotations);
@@ -764,7 +764,7 @@ impl<'m> Newmark<'m> {
                             // the exact tangent can be indefinite: this
                             // iteration takes R K Rᵀ in place of K_exact.
                             report.fallbacks += 1;
-                            self.assemble_corotated(&d);
+                            self.assemble_tangent(&d, false);
                             self.chol.factorize(&self.keff)?;
                         }
                         other => other?,
@@ -822,37 +822,30 @@ impl<'m> Newmark<'m> {
     }
 
     /// The step's residual at the iterate `d` (free equations, into
-    /// `r_free`), relative to its force scale, and, when `need_tangent`, the
-    /// stiffness part of its Newton matrix into `keff` (completed by
-    /// [`Newmark::complete_tangent`]):
+    /// `r_free`), relative to its force scale, the rotations updated to `d`:
     ///
     /// r(d) = f_ext − f_int(d) − M a(d) − D v(d), D = α M + β_R Rₙ K Rₙᵀ,
     ///
     /// with the damping stiffness on the rotations Rₙ of the step's start
     /// (constant over the step), so that −dr/dd = K_t(d) + c₀ M + γ/(βΔt) D
-    /// exactly, symmetric (K_t: the exact tangent, or R K Rᵀ).
-    fn residual(&mut self, d: &[f64], need_tangent: bool) -> f64 {
+    /// exactly, symmetric (K_t: the exact tangent, or R K Rᵀ):
+    /// [`Newmark::assemble_tangent`]. Forces only: the iterate that meets the
+    /// tolerance assembles no tangent.
+    fn residual(&mut self, d: &[f64]) -> f64 {
         let model = self.model;
         let o = self.opts;
         let linear = model.formulation == Formulation::Linear;
-        // Linear: Rₙ = I, the damping stiffness is K, added in the same pass.
-        let damping_in_pass = if linear {
-            o.rayleigh_stiffness * o.gamma / (o.beta * o.dt)
-        } else {
-            0.0
-        };
-        self.strain_energy = evaluate_damped(
+        self.strain_energy = evaluate(
             model,
             d,
             &mut self.state.rotations,
             &mut self.ws,
             Request {
                 forces: Some(&mut self.f_int),
-                tangent: need_tangent.then_some(&mut self.keff[..]),
+                tangent: None,
                 update_rotations: !linear,
-                exact_tangent: o.exact_tangent && !linear,
+                exact_tangent: false,
             },
-            damping_in_pass,
         );
         self.kinematics(d);
         // r = f_ext − f_int − M a − D v.
@@ -920,10 +913,19 @@ impl<'m> Newmark<'m> {
         }
     }
 
-    /// keff = R K Rᵀ at `d` with the stored rotations, completed by
-    /// [`Newmark::complete_tangent`] (the fallback of an indefinite exact tangent).
-    fn assemble_corotated(&mut self, d: &[f64]) {
-        evaluate(
+    /// keff = −dr/dd at `d` (after [`Newmark::residual`] at `d`, whose
+    /// rotations it uses): K_t — the exact tangent when `exact`, else R K Rᵀ
+    /// (the fallback of an indefinite exact tangent) — completed by
+    /// [`Newmark::complete_tangent`].
+    fn assemble_tangent(&mut self, d: &[f64], exact: bool) {
+        let o = self.opts;
+        // Linear: Rₙ = I, the damping stiffness is K, added in the same pass.
+        let damping_in_pass = if self.model.formulation == Formulation::Linear {
+            o.rayleigh_stiffness * o.gamma / (o.beta * o.dt)
+        } else {
+            0.0
+        };
+        evaluate_damped(
             self.model,
             d,
             &mut self.state.rotations,
@@ -932,8 +934,9 @@ impl<'m> Newmark<'m> {
                 forces: None,
                 tangent: Some(&mut self.keff),
                 update_rotations: false,
-                exact_tangent: false,
+                exact_tangent: exact,
             },
+            damping_in_pass,
         );
         self.complete_tangent();
     }
@@ -948,8 +951,9 @@ impl<'m> Newmark<'m> {
         let t_new = self.state.time + self.opts.dt;
         let predictor = self.begin_step(t_new);
         self.state.d = predictor;
-        self.residual(d, true);
-        self.complete_tangent();
+        self.residual(d);
+        let exact = self.opts.exact_tangent && self.model.formulation != Formulation::Linear;
+        self.assemble_tangent(d, exact);
         let out = (self.r_free.clone(), self.keff.clone());
         (self.state.d, self.state.rotations) = saved;
         out
