@@ -161,10 +161,12 @@ pub fn evaluate(
     evaluate_damped(model, d, rot, ws, req, 0.0)
 }
 
-/// [`evaluate`] with `damping` × R K Rᵀ added to the requested tangent: the
-/// Newton matrix of a step with stiffness-proportional Rayleigh damping
-/// D = β_R R K Rᵀ, whose velocity derivative brings c₁γβ_R R K Rᵀ beside the
-/// exact tangent of the forces (seed section 3.5).
+/// [`evaluate`] with `damping` × R K Rᵀ added to the requested tangent, R the
+/// rotations the pass uses: the Newton matrix of a linear step with
+/// stiffness-proportional Rayleigh damping D = β_R K, whose velocity
+/// derivative brings γβ_R/(βΔt) K beside K (seed section 3.5). (Corotational
+/// steps hold the damping's rotations over the step and add its stiffness
+/// themselves: `dynamics`.)
 pub fn evaluate_damped(
     model: &Model,
     d: &[f64],
@@ -554,4 +556,63 @@ pub fn field_load(
         }
     }
     out
+}
+
+/// One pass over what the corotational assembly reads and writes, without its
+/// arithmetic: each element's shape ids and nodal values of `d`, each group's
+/// weight and gradients, and the element's scatter map with one add per
+/// stored entry into `k` (tangent values) and per DOF into `f` — the
+/// memory-traffic floor of [`evaluate`] (benches/step.rs, examples/step_profile.rs
+/// time it against the assembly). Returns a sum so the reads are kept.
+pub fn element_data_pass(model: &Model, d: &[f64], f: &mut [f64], k: &mut [f64]) -> f64 {
+    let mut acc = 0.0;
+    for el in &model.elements {
+        let shapes = &model.shape_ids[el.shapes.clone()];
+        let n = shapes.len();
+        let mut u = 0.0;
+        for &s in shapes {
+            let s = 3 * s as usize;
+            u += d[s] + d[s + 1] + d[s + 2];
+        }
+        for g in el.groups.clone() {
+            let group = model.groups[g];
+            let start = group.grads as usize;
+            let grads = &model.grads[start..start + n];
+            acc += group.weight * u * grads.iter().map(|v| v.x + v.y + v.z).sum::<f64>();
+        }
+        for &s in shapes {
+            let s = 3 * s as usize;
+            for c in 0..3 {
+                f[s + c] += acc;
+            }
+        }
+        for &p in &model.scatter[el.scatter..el.scatter + 9 * n * n] {
+            if p != NONE {
+                k[p as usize] += acc;
+            }
+        }
+    }
+    acc
+}
+
+/// The bytes one [`element_data_pass`] reads from the model's element
+/// arrays (shape ids, groups, gradients, scatter maps), not counting `d`,
+/// `f`, `k`.
+pub fn element_data_bytes(model: &Model) -> usize {
+    use std::mem::size_of;
+    let scatter: usize = model
+        .elements
+        .iter()
+        .map(|e| 9 * e.shapes.len().pow(2))
+        .sum();
+    let grads: usize = model
+        .elements
+        .iter()
+        .map(|e| e.groups.len() * e.shapes.len())
+        .sum();
+    model.shape_ids.len() * size_of::<u32>()
+        + model.groups.len() * size_of::<crate::model::Group>()
+        + grads * size_of::<Vector3<f64>>()
+        + scatter * size_of::<u32>()
+        + model.elements.len() * size_of::<crate::model::ElementData>()
 }

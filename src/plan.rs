@@ -118,6 +118,19 @@ impl Plan {
                 true,
                 "CG preconditioned by the last factorisation warped by the node rotations",
             ),
+            (
+                true,
+                Some(LinearSolver::Lagged {
+                    every,
+                    refactor_after,
+                }),
+            ) => add(
+                &format!(
+                    "numeric factorisation every {every} steps, or after {refactor_after} Newton iterations on one factor"
+                ),
+                true,
+                "modified Newton on a lagged factorisation",
+            ),
             (true, Some(LinearSolver::Direct)) => add(
                 "numeric factorisation every iteration",
                 true,
