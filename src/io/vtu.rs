@@ -375,6 +375,31 @@ struct RawArray {
     body: Vec<u8>,
 }
 
+/// What is wrong with one DataArray's content (the caller names the file).
+#[derive(Debug, thiserror::Error)]
+enum ArrayError {
+    #[error("{array}: not ASCII text")]
+    NotText { array: String },
+    #[error("{array}: `{word}` is not a {ty:?}")]
+    NotNumber {
+        array: String,
+        word: String,
+        ty: Scalar,
+    },
+    #[error("{array}: {what} out of range for its use")]
+    OutOfRange { array: String, what: &'static str },
+    #[error("{array}: {bytes} bytes is not a whole number of {ty:?} values")]
+    Partial {
+        array: String,
+        bytes: usize,
+        ty: Scalar,
+    },
+    #[error("{array}: not an uncompressed base64 block with a {header}-byte header")]
+    NotBase64 { array: String, header: usize },
+    #[error("{array}: has type {ty:?}, expected an integer type")]
+    NotInteger { array: String, ty: Scalar },
+}
+
 impl RawArray {
     fn describe(&self) -> String {
         format!("{} DataArray `{}`", self.section, self.name)
@@ -387,11 +412,16 @@ impl RawArray {
         f: &FileFormat,
         float: impl Fn(f64) -> Option<R>,
         int: impl Fn(i128) -> Option<R>,
-    ) -> Result<Vec<R>, String> {
-        let bad = || format!("{}: a value out of range for its use", self.describe());
+        what: &'static str,
+    ) -> Result<Vec<R>, ArrayError> {
+        let bad = || ArrayError::OutOfRange {
+            array: self.describe(),
+            what,
+        };
         if !self.binary {
-            let text = std::str::from_utf8(&self.body)
-                .map_err(|_| format!("{}: not ASCII text", self.describe()))?;
+            let text = std::str::from_utf8(&self.body).map_err(|_| ArrayError::NotText {
+                array: self.describe(),
+            })?;
             return text
                 .split_ascii_whitespace()
                 .map(|w| {
@@ -401,7 +431,11 @@ impl RawArray {
                         w.parse::<i128>().ok().map(&int)
                     };
                     match v {
-                        None => Err(format!("{}: `{w}` is not a {:?}", self.describe(), self.ty)),
+                        None => Err(ArrayError::NotNumber {
+                            array: self.describe(),
+                            word: w.to_string(),
+                            ty: self.ty,
+                        }),
                         Some(None) => Err(bad()),
                         Some(Some(x)) => Ok(x),
                     }
@@ -409,15 +443,17 @@ impl RawArray {
                 .collect();
         }
         let (bytes, start) =
-            decode_base64_block(&self.body, f).map_err(|m| format!("{}: {m}", self.describe()))?;
+            decode_base64_block(&self.body, f).ok_or_else(|| ArrayError::NotBase64 {
+                array: self.describe(),
+                header: f.header_bytes,
+            })?;
         let data = &bytes[start..];
         if !data.len().is_multiple_of(self.ty.size()) {
-            return Err(format!(
-                "{}: {} bytes is not a whole number of {:?} values",
-                self.describe(),
-                data.len(),
-                self.ty
-            ));
+            return Err(ArrayError::Partial {
+                array: self.describe(),
+                bytes: data.len(),
+                ty: self.ty,
+            });
         }
         let be = f.big_endian;
         macro_rules! convert {
@@ -451,20 +487,18 @@ impl RawArray {
         }
     }
 
-    fn floats(&self, f: &FileFormat) -> Result<Vec<f64>, String> {
-        self.values(f, Some, |i| Some(i as f64))
+    fn floats(&self, f: &FileFormat) -> Result<Vec<f64>, ArrayError> {
+        self.values(f, Some, |i| Some(i as f64), "a value")
     }
 
-    fn indices(&self, f: &FileFormat) -> Result<Vec<usize>, String> {
+    fn indices(&self, f: &FileFormat) -> Result<Vec<usize>, ArrayError> {
         if self.ty.is_float() {
-            return Err(format!(
-                "{}: has type {:?}, expected an integer type",
-                self.describe(),
-                self.ty
-            ));
+            return Err(ArrayError::NotInteger {
+                array: self.describe(),
+                ty: self.ty,
+            });
         }
-        self.values(f, |_| None, |i| usize::try_from(i).ok())
-            .map_err(|m| m.replace("a value out of range for its use", "a negative index"))
+        self.values(f, |_| None, |i| usize::try_from(i).ok(), "a negative index")
     }
 }
 
@@ -472,7 +506,7 @@ impl RawArray {
 /// the data. VTK and meshio encode both as one base64 stream; some writers
 /// encode the header on its own (padded), so both are accepted.
 /// Returns the decoded bytes and where the data starts in them.
-fn decode_base64_block(body: &[u8], f: &FileFormat) -> Result<(Vec<u8>, usize), String> {
+fn decode_base64_block(body: &[u8], f: &FileFormat) -> Option<(Vec<u8>, usize)> {
     let lenient = GeneralPurpose::new(
         &base64::alphabet::STANDARD,
         GeneralPurposeConfig::new()
@@ -503,7 +537,7 @@ fn decode_base64_block(body: &[u8], f: &FileFormat) -> Result<(Vec<u8>, usize), 
     };
     if let Ok(all) = lenient.decode(clean) {
         if all.len() >= hb && all.len() - hb == header_len(&all[..hb]) {
-            return Ok((all, hb));
+            return Some((all, hb));
         }
     }
     let header_chars = hb.div_ceil(3) * 4;
@@ -513,14 +547,11 @@ fn decode_base64_block(body: &[u8], f: &FileFormat) -> Result<(Vec<u8>, usize), 
             lenient.decode(&clean[header_chars..]),
         ) {
             if h.len() == hb && header_len(&h) == data.len() {
-                return Ok((data, 0));
+                return Some((data, 0));
             }
         }
     }
-    Err(format!(
-        "not an uncompressed base64 block with a {}-byte header",
-        hb
-    ))
+    None
 }
 
 fn attributes(path: &Path, e: &BytesStart) -> Result<BTreeMap<String, String>, IoError> {
@@ -717,6 +748,7 @@ pub fn read_vtu(path: &Path) -> Result<VtuData, IoError> {
 
     let mut data = VtuData::default();
     let err = |m: String| IoError::invalid(path, m);
+    let bad = |m: ArrayError| IoError::invalid(path, m.to_string());
     let mut have = (false, false);
     for a in &arrays {
         match (a.section.as_str(), a.name.as_str()) {
@@ -724,29 +756,29 @@ pub fn read_vtu(path: &Path) -> Result<VtuData, IoError> {
                 if a.comps != 3 {
                     return Err(err(format!("Points have {} components, not 3", a.comps)));
                 }
-                data.points = a.floats(&format).map_err(err)?;
+                data.points = a.floats(&format).map_err(bad)?;
                 have.0 = true;
             }
-            ("Cells", "connectivity") => data.connectivity = a.indices(&format).map_err(err)?,
+            ("Cells", "connectivity") => data.connectivity = a.indices(&format).map_err(bad)?,
             ("Cells", "offsets") => {
-                data.offsets = a.indices(&format).map_err(err)?;
+                data.offsets = a.indices(&format).map_err(bad)?;
                 have.1 = true;
             }
             ("Cells", "types") => {
                 data.types = a
                     .indices(&format)
-                    .map_err(err)?
+                    .map_err(bad)?
                     .into_iter()
                     .map(|t| u8::try_from(t).map_err(|_| err(format!("cell type {t}"))))
                     .collect::<Result<_, _>>()?
             }
             ("PointData", _) => {
                 data.point_data
-                    .insert(a.name.clone(), (a.comps, a.floats(&format).map_err(err)?));
+                    .insert(a.name.clone(), (a.comps, a.floats(&format).map_err(bad)?));
             }
             ("CellData", _) => {
                 data.cell_data
-                    .insert(a.name.clone(), (a.comps, a.floats(&format).map_err(err)?));
+                    .insert(a.name.clone(), (a.comps, a.floats(&format).map_err(bad)?));
             }
             _ => {}
         }

@@ -78,14 +78,19 @@ impl<'de> Deserialize<'de> for Row {
     }
 }
 
-impl TryFrom<RowRecord> for Row {
-    type Error = String;
+/// A study row naming an element kind the study does not run.
+#[derive(Debug, thiserror::Error)]
+#[error("element must be tet4 or tet10, got {0:?}")]
+pub struct UnknownElement(String);
 
-    fn try_from(r: RowRecord) -> Result<Row, String> {
+impl TryFrom<RowRecord> for Row {
+    type Error = UnknownElement;
+
+    fn try_from(r: RowRecord) -> Result<Row, UnknownElement> {
         let element = match r.element.as_str() {
             "tet4" => "tet4",
             "tet10" => "tet10",
-            other => return Err(format!("element must be tet4 or tet10, got {other:?}")),
+            other => return Err(UnknownElement(other.to_string())),
         };
         Ok(Row {
             case: r.case,
