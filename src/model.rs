@@ -113,6 +113,11 @@ pub struct Model {
     pub material: Material,
     pub lame: Lame,
     pub formulation: Formulation,
+    /// How it was integrated, its gravity, and whether it has a body force
+    /// beyond gravity (what [`Model::update_cut`] integrates changed elements with).
+    pub integration: Integration,
+    pub gravity: Option<Vector3<f64>>,
+    pub body_force: bool,
     pub cut: Option<CutSetup>,
     /// Number of shape functions (nodes + enriched nodes).
     pub n_shape: usize,
@@ -146,13 +151,6 @@ pub struct Model {
     pub mid_edge: Vec<Option<[u32; 2]>>,
 }
 
-/// An integration cell of an element: a (sub-)tetrahedron on one side of the cut.
-struct Cell {
-    vertices: [Point3<f64>; 4],
-    /// +1 / −1 above / below the cut, 0 for an element without enrichment.
-    side: i8,
-}
-
 impl Model {
     pub fn n_dofs(&self) -> usize {
         3 * self.n_shape
@@ -181,6 +179,13 @@ impl Model {
     }
 
     /// As [`Model::build`], choosing how Tet4 elements are integrated.
+    ///
+    /// In named steps: per element, [`element_cells`] (its shape functions
+    /// and integration cells, each cell's volume computed once) and
+    /// [`Integrator::block`] (one walk over those cells: integration groups,
+    /// loads, mass); then [`number_dofs`] (prescribed DOFs eliminated),
+    /// [`pattern_and_scatter`], the boundary tractions and the consistent
+    /// mass on the pattern.
     pub fn build_with(
         input: ModelInput<'_>,
         integration: Integration,
@@ -196,443 +201,67 @@ impl Model {
             tractions,
             need_mass,
         } = input;
-        let kind = mesh.kind;
-        let n_nodes = mesh.n_nodes();
-        let n_enriched = cut.as_ref().map_or(0, |c| c.n_enriched);
-        let n_tip = cut.as_ref().map_or(0, |c| c.n_tip);
-        let n_shape = n_nodes + n_enriched + N_BRANCH * n_tip;
-        if 3 * n_shape >= NONE as usize {
-            return Err(ModelError::TooLarge(3 * n_shape));
-        }
+        let n_shape = shape_count(&mesh, cut.as_ref())?;
         let mut shape_ref: Vec<Vector3<f64>> = mesh.nodes.iter().map(|p| p.coords).collect();
         shape_ref.resize(n_shape, Vector3::zeros());
-
-        let lame = Lame::from(material);
-        let rho = material.density;
-        let nn = kind.nodes();
-        let stiffness_rule = quadrature::rule(match (kind, integration) {
-            (ElementKind::Tet4, Integration::Grouped) => 1,
-            _ => 2,
-        });
-        // Gravity is constant (degree = shape degree); a varying body force gets degree 5.
-        let load_rule = if body_force.is_some() {
-            quadrature::rule(5)
-        } else {
-            stiffness_rule
+        let integrator = Integrator {
+            mesh: &mesh,
+            rho: material.density,
+            integration,
+            gravity,
+            body_force,
+            need_mass,
         };
-        let mass_rule = quadrature::rule(match kind {
-            ElementKind::Tet4 => 2,
-            ElementKind::Tet10 => 4,
-        });
-
-        let mut elements = Vec::with_capacity(mesh.n_elements());
-        let mut shape_ids: Vec<u32> = Vec::with_capacity(mesh.cells.len());
-        let mut groups = Vec::new();
-        let mut group_element = Vec::new();
-        let mut grads = Vec::new();
-        let mut load = vec![0.0; 3 * n_shape];
-        let mut lumped = need_mass.then(|| vec![0.0; n_shape]);
-        let mut coupling = need_mass.then(|| vec![0.0; n_enriched]);
-        // Element-local consistent mass entries (shape a, shape b, value), for the optional consistent mass.
-        let mut mass_entries: Vec<(Range<usize>, Vec<f64>)> = Vec::new();
-
-        let mut scatter_len = 0usize;
-        let mut nvals = [0.0; 10];
-        let mut ngrads = [Vector3::zeros(); 10];
+        let mut flat = FlatElements::with_capacity(mesh.n_elements(), mesh.cells.len());
+        let mut globals = Globals::new(n_shape, cut.as_ref(), need_mass);
+        let mut masses = Vec::with_capacity(if need_mass { mesh.n_elements() } else { 0 });
         for e in 0..mesh.n_elements() {
-            let conn = mesh.element(e);
-            let verts = mesh.vertex_points(e);
-            let volume = tet_volume(&verts);
-            let dl = barycentric_gradients(&verts)
-                .filter(|_| volume > 0.0)
-                .ok_or(ModelError::DegenerateElement { element: e, volume })?;
-
-            // Shape functions: the element's nodes, then its enriched nodes.
-            let first = shape_ids.len();
-            shape_ids.extend(conn.iter().map(|&i| i as u32));
-            let mut enr_local: Vec<usize> = Vec::new();
-            let mut cells: Vec<Cell> = Vec::new();
-            let mut node_side = [0i8; 10];
-            let element_cut = cut.as_ref().map(|c| &c.elements[e]);
-            match (cut.as_ref(), element_cut) {
-                (Some(c), Some(ElementCut::Cut { sub_tets, .. })) => {
-                    for (k, &i) in conn.iter().enumerate() {
-                        node_side[k] = c.node_side[i];
-                        if let Some(j) = c.enriched[i] {
-                            enr_local.push(k);
-                            shape_ids.push((n_nodes + j) as u32);
-                        }
-                    }
-                    cells.extend(sub_tets.iter().map(|s| Cell {
-                        vertices: s.vertices,
-                        side: s.side,
-                    }));
-                }
-                (Some(c), Some(ElementCut::Touched { side })) => {
-                    for (k, &i) in conn.iter().enumerate() {
-                        node_side[k] = c.node_side[i];
-                        if let Some(j) = c.enriched[i] {
-                            if psi(*side, c.node_side[i]) != 0.0 {
-                                enr_local.push(k);
-                                shape_ids.push((n_nodes + j) as u32);
-                            }
-                        }
-                    }
-                    cells.push(Cell {
-                        vertices: verts,
-                        side: *side,
-                    });
-                }
-                _ => cells.push(Cell {
-                    vertices: verts,
-                    side: 0,
-                }),
-            }
-            // Elements holding tip-enriched nodes: one group per quadrature point.
-            if let Some(shapes) = cut
-                .as_ref()
-                .and_then(|c| ElementShapes::new(&mesh, c, e, &dl, enr_local.clone()))
-            {
-                shape_ids.extend(shapes.tip_shape_ids(n_nodes + n_enriched));
-                let m = shape_ids.len() - first;
-                let ids = &shape_ids[first..];
-                let group_start = groups.len();
-                let mut me = vec![0.0; m * m];
-                let mut vals = vec![0.0; m];
-                let mut gr = vec![Vector3::zeros(); m];
-                for cell in &cells {
-                    let (mut int_n, mut int_n2) = ([0.0; 10], [0.0; 10]);
-                    let cell_volume = tet_volume(&cell.vertices);
-                    if cell_volume <= 0.0 {
-                        continue;
-                    }
-                    for q in shapes.cell_rule(&cell.vertices) {
-                        let bary = crate::mesh::barycentric(&verts, &q.x).unwrap_or([0.25; 4]);
-                        let w = q.weight;
-                        shapes.eval(&bary, cell.side, &mut vals, &mut gr);
-                        groups.push(Group {
-                            weight: w,
-                            grads: grads.len() as u32,
-                        });
-                        group_element.push(e as u32);
-                        grads.extend_from_slice(&gr);
-                        if gravity.is_some() || body_force.is_some() {
-                            let mut f = gravity.map_or(Vector3::zeros(), |g| g * rho);
-                            if let Some(bf) = body_force {
-                                f += bf(&q.x);
-                            }
-                            for (a, &v) in vals.iter().enumerate() {
-                                let sid = ids[a] as usize;
-                                for c in 0..3 {
-                                    load[3 * sid + c] += w * f[c] * v;
-                                }
-                            }
-                        }
-                        if need_mass {
-                            for a in 0..m {
-                                for b in 0..m {
-                                    me[a * m + b] += rho * w * vals[a] * vals[b];
-                                }
-                            }
-                            for k in 0..nn {
-                                int_n[k] += w * vals[k];
-                                int_n2[k] += w * vals[k] * vals[k];
-                            }
-                        }
-                    }
-                    if let (Some(lumped), Some(coupling)) = (lumped.as_mut(), coupling.as_mut()) {
-                        let share = lump_cell_mass(kind, rho, cell_volume, &int_n, &int_n2);
-                        for k in 0..nn {
-                            lumped[ids[k] as usize] += share[k];
-                        }
-                        for (j, &k) in shapes.heaviside.iter().enumerate() {
-                            let p = if cell.side == 0 {
-                                0.0
-                            } else {
-                                psi(cell.side, node_side[k])
-                            };
-                            let enriched = ids[nn + j] as usize;
-                            lumped[enriched] += p * p * share[k];
-                            coupling[enriched - n_nodes] += p * share[k];
-                        }
-                    }
-                }
-                if let Some(lumped) = lumped.as_mut() {
-                    // Tip DOFs: the diagonal of the consistent mass (no coupling).
-                    for a in nn + shapes.heaviside.len()..m {
-                        lumped[ids[a] as usize] += me[a * m + a];
-                    }
-                }
-                if need_mass {
-                    mass_entries.push((first..first + m, me));
-                }
-                elements.push(ElementData {
-                    shapes: first..first + m,
-                    groups: group_start..groups.len(),
-                    scatter: scatter_len,
-                });
-                scatter_len += 9 * m * m;
-                continue;
-            }
-            let m = shape_ids.len() - first;
-            let psi_of = |cell: &Cell, k: usize| -> f64 {
-                if cell.side == 0 {
-                    0.0
-                } else {
-                    psi(cell.side, node_side[k])
-                }
-            };
-
-            // Integration groups: per side for Tet4 (strain constant on a side),
-            // per quadrature point for Tet10.
-            let group_start = groups.len();
-            let mut side_group: [Option<usize>; 3] = [None; 3];
-            for cell in &cells {
-                let cell_volume = tet_volume(&cell.vertices);
-                if cell_volume <= 0.0 {
-                    continue;
-                }
-                for q in stiffness_rule {
-                    let (bary, w) = map_point(&verts, &cell.vertices, q, cell_volume);
-                    shape_gradients(kind, &bary, &dl, &mut ngrads);
-                    let grouped = kind == ElementKind::Tet4 && integration == Integration::Grouped;
-                    let g = match (grouped, side_group[(cell.side + 1) as usize]) {
-                        (true, Some(g)) => g,
-                        _ => {
-                            let g = groups.len();
-                            groups.push(Group {
-                                weight: 0.0,
-                                grads: grads.len() as u32,
-                            });
-                            group_element.push(e as u32);
-                            grads.extend(std::iter::repeat_n(Vector3::zeros(), m));
-                            if grouped {
-                                side_group[(cell.side + 1) as usize] = Some(g);
-                            }
-                            g
-                        }
-                    };
-                    // For Tet4 all points of a side have the same gradients: store them once.
-                    let gstart = groups[g].grads as usize;
-                    if !grouped || groups[g].weight == 0.0 {
-                        grads[gstart..gstart + nn].copy_from_slice(&ngrads[..nn]);
-                        for (j, &k) in enr_local.iter().enumerate() {
-                            grads[gstart + nn + j] = ngrads[k] * psi_of(cell, k);
-                        }
-                    }
-                    groups[g].weight += w;
-                }
-                // Loads and mass: shape values on the cell.
-                let mut shape_val = vec![0.0; m];
-                if gravity.is_some() || body_force.is_some() {
-                    for q in load_rule {
-                        let (bary, w) = map_point(&verts, &cell.vertices, q, cell_volume);
-                        eval_shapes(
-                            kind,
-                            &bary,
-                            &enr_local,
-                            |k| psi_of(cell, k),
-                            &mut nvals,
-                            &mut shape_val,
-                        );
-                        let mut f = gravity.map_or(Vector3::zeros(), |g| g * rho);
-                        if let Some(bf) = body_force {
-                            let x = verts
-                                .iter()
-                                .zip(bary)
-                                .fold(Vector3::zeros(), |s, (p, l)| s + p.coords * l);
-                            f += bf(&Point3::from(x));
-                        }
-                        for (a, &phi) in shape_val.iter().enumerate() {
-                            let s = shape_ids[first + a] as usize;
-                            for c in 0..3 {
-                                load[3 * s + c] += w * f[c] * phi;
-                            }
-                        }
-                    }
-                }
-            }
-            let groups_range = group_start..groups.len();
-
+            let cells = element_cells(&mesh, cut.as_ref(), e)?;
+            let block = integrator.block(&cells, Some(&mut globals));
+            flat.push_block(e, &block);
             if need_mass {
-                // Consistent element mass M_ab = ρ ∫ φ_a φ_b (eq. 77–80), by cell quadrature.
-                let mut me = vec![0.0; m * m];
-                let mut shape_val = vec![0.0; m];
-                for cell in &cells {
-                    let cell_volume = tet_volume(&cell.vertices);
-                    if cell_volume <= 0.0 {
-                        continue;
-                    }
-                    for q in mass_rule {
-                        let (bary, w) = map_point(&verts, &cell.vertices, q, cell_volume);
-                        eval_shapes(
-                            kind,
-                            &bary,
-                            &enr_local,
-                            |k| psi_of(cell, k),
-                            &mut nvals,
-                            &mut shape_val,
-                        );
-                        for a in 0..m {
-                            for b in 0..m {
-                                me[a * m + b] += rho * w * shape_val[a] * shape_val[b];
-                            }
-                        }
-                    }
-                }
-                if let (Some(lumped), Some(coupling)) = (lumped.as_mut(), coupling.as_mut()) {
-                    for cell in &cells {
-                        let cell_volume = tet_volume(&cell.vertices);
-                        if cell_volume <= 0.0 {
-                            continue;
-                        }
-                        // ∫ N_k and ∫ N_k² over the cell (standard shape functions).
-                        let (mut int_n, mut int_n2) = ([0.0; 10], [0.0; 10]);
-                        for q in mass_rule {
-                            let (bary, w) = map_point(&verts, &cell.vertices, q, cell_volume);
-                            shape_values(kind, &bary, &mut nvals);
-                            for k in 0..nn {
-                                int_n[k] += w * nvals[k];
-                                int_n2[k] += w * nvals[k] * nvals[k];
-                            }
-                        }
-                        let share = lump_cell_mass(kind, rho, cell_volume, &int_n, &int_n2);
-                        for k in 0..nn {
-                            lumped[shape_ids[first + k] as usize] += share[k];
-                        }
-                        for (j, &k) in enr_local.iter().enumerate() {
-                            let p = psi_of(cell, k);
-                            let enriched = shape_ids[first + nn + j] as usize;
-                            lumped[enriched] += p * p * share[k];
-                            coupling[enriched - n_nodes] += p * share[k];
-                        }
-                    }
-                }
-                mass_entries.push((first..first + m, me));
-            }
-
-            elements.push(ElementData {
-                shapes: first..first + m,
-                groups: groups_range,
-                scatter: scatter_len,
-            });
-            scatter_len += 9 * m * m;
-        }
-
-        // DOF numbering with elimination of prescribed DOFs.
-        let mut equation = vec![0u32; 3 * n_shape];
-        let mut prescribed = Vec::new();
-        for &(node, comps) in &fixed {
-            for (c, v) in comps.iter().enumerate() {
-                if let Some(v) = v {
-                    let dof = 3 * node + c;
-                    if equation[dof] != NONE {
-                        equation[dof] = NONE;
-                        prescribed.push(Prescribed { dof, value: *v });
-                    }
-                }
+                masses.push(block.mass);
             }
         }
-        let mut n_free = 0usize;
-        for eq in equation.iter_mut() {
-            if *eq != NONE {
-                *eq = n_free as u32;
-                n_free += 1;
-            }
-        }
-
-        // Sparsity pattern of the free system and the element scatter maps.
-        let mut cols: Vec<Vec<usize>> = vec![Vec::new(); n_free];
-        for el in &elements {
-            let dofs = element_equations(&shape_ids[el.shapes.clone()], &equation);
-            for &r in &dofs {
-                if r == NONE {
-                    continue;
-                }
-                for &c in &dofs {
-                    if c != NONE && r >= c {
-                        cols[c as usize].push(r as usize);
-                    }
-                }
-            }
-        }
-        let pattern = Pattern::from_entries(n_free, cols);
-        let mut scatter = vec![NONE; scatter_len];
-        for el in &elements {
-            let dofs = element_equations(&shape_ids[el.shapes.clone()], &equation);
-            let n = dofs.len();
-            for (p, &r) in dofs.iter().enumerate() {
-                for (q, &c) in dofs.iter().enumerate() {
-                    if r != NONE && c != NONE && r >= c {
-                        let pos = pattern
-                            .position(r as usize, c as usize)
-                            .expect("pattern holds every element entry");
-                        scatter[el.scatter + p * n + q] = pos as u32;
-                    }
-                }
-            }
-        }
-
+        let (equation, prescribed, n_free) = number_dofs(n_shape, &fixed);
+        let (pattern, scatter) = pattern_and_scatter(&flat, &equation, n_free);
         // Boundary tractions: ∫ t φ_a over the selected faces (standard shapes only;
         // faces are of the uncut body).
         for t in tractions {
-            add_traction(&mesh, t, &mut load);
+            add_traction(&mesh, t, &mut globals.load);
         }
-
         let consistent_mass = need_mass.then(|| {
             let mut values = vec![0.0; pattern.nnz()];
-            for (el, (range, me)) in elements.iter().zip(&mass_entries) {
-                let m = range.len();
-                for a in 0..m {
-                    for b in 0..m {
-                        for c in 0..3 {
-                            let pos = scatter[el.scatter + (3 * a + c) * 3 * m + 3 * b + c];
-                            if pos != NONE {
-                                values[pos as usize] += me[a * m + b];
-                            }
-                        }
-                    }
-                }
+            for (el, me) in flat.elements.iter().zip(&masses) {
+                add_element_mass(el, me, &scatter, &mut values, 1.0);
             }
             values
         });
-
-        // Tet10 mid-nodes next to tip-enriched vertices: their edge (for node_displacement).
-        let mut mid_edge = Vec::new();
-        if let (ElementKind::Tet10, Some(c)) = (kind, cut.as_ref()) {
-            if c.n_tip > 0 {
-                mid_edge = vec![None; n_nodes];
-                for e in 0..mesh.n_elements() {
-                    let conn = mesh.element(e);
-                    for (k, &(a, b)) in TET10_EDGES.iter().enumerate() {
-                        if c.tip[conn[a]].is_some() || c.tip[conn[b]].is_some() {
-                            mid_edge[conn[4 + k]] = Some([conn[a] as u32, conn[b] as u32]);
-                        }
-                    }
-                }
-            }
-        }
+        let mid_edge = mid_edges(&mesh, cut.as_ref());
         Ok(Model {
+            lame: Lame::from(material),
             mesh,
             material,
-            lame,
             formulation,
+            integration,
+            gravity,
+            body_force: body_force.is_some(),
             cut,
             n_shape,
             shape_ref,
-            elements,
-            shape_ids,
-            groups,
-            grads,
-            group_element,
+            elements: flat.elements,
+            shape_ids: flat.shape_ids,
+            groups: flat.groups,
+            grads: flat.grads,
+            group_element: flat.group_element,
             equation,
             n_free,
             prescribed,
             pattern,
             scatter,
-            load,
-            lumped_mass: lumped,
-            lumped_coupling: coupling,
+            load: globals.load,
+            lumped_mass: globals.lumped,
+            lumped_coupling: globals.coupling,
             consistent_mass,
             mid_edge,
         })
@@ -1091,6 +720,625 @@ fn add_traction(mesh: &TetMesh, t: &Traction, load: &mut [f64]) {
             }
         }
     }
+}
+
+// ---------------------------------------------------------------------------
+// The named steps of [`Model::build_with`] (and of [`Model::update_cut`]).
+
+/// Number of shape functions of a mesh with a cut: nodes, Heaviside-enriched
+/// nodes, four branch functions per tip-enriched node.
+fn shape_count(mesh: &TetMesh, cut: Option<&CutSetup>) -> Result<usize, ModelError> {
+    let n_enriched = cut.map_or(0, |c| c.n_enriched);
+    let n_tip = cut.map_or(0, |c| c.n_tip);
+    let n_shape = mesh.n_nodes() + n_enriched + N_BRANCH * n_tip;
+    if 3 * n_shape >= NONE as usize {
+        return Err(ModelError::TooLarge(3 * n_shape));
+    }
+    Ok(n_shape)
+}
+
+/// An integration cell of an element: a (sub-)tetrahedron on one side of the cut.
+struct Cell {
+    vertices: [Point3<f64>; 4],
+    /// +1 / −1 above / below the cut, 0 for an element without enrichment.
+    side: i8,
+    /// Its volume (> 0: cells without volume are left out).
+    volume: f64,
+}
+
+/// Step 1 of the build for one element: its geometry, its shape functions
+/// (nodes, then Heaviside-enriched nodes, then tip functions) and its
+/// integration cells with their volumes.
+struct ElementCells {
+    verts: [Point3<f64>; 4],
+    dl: [Vector3<f64>; 4],
+    /// Global shape-function ids.
+    shape_ids: Vec<u32>,
+    /// Local nodes whose Heaviside shape functions the element holds.
+    heaviside: Vec<usize>,
+    node_side: [i8; 10],
+    cells: Vec<Cell>,
+    /// The point-by-point shapes of an element holding tip-enriched nodes.
+    tip: Option<ElementShapes>,
+}
+
+impl ElementCells {
+    /// ψ of local node `k` in `cell` (0 in an element without enrichment).
+    fn psi(&self, cell: &Cell, k: usize) -> f64 {
+        if cell.side == 0 {
+            0.0
+        } else {
+            psi(cell.side, self.node_side[k])
+        }
+    }
+}
+
+/// Step 1: the cells of element `e` (degenerate elements are refused).
+fn element_cells(
+    mesh: &TetMesh,
+    cut: Option<&CutSetup>,
+    e: usize,
+) -> Result<ElementCells, ModelError> {
+    let conn = mesh.element(e);
+    let verts = mesh.vertex_points(e);
+    let volume = tet_volume(&verts);
+    let dl = barycentric_gradients(&verts)
+        .filter(|_| volume > 0.0)
+        .ok_or(ModelError::DegenerateElement { element: e, volume })?;
+    let n_nodes = mesh.n_nodes();
+    let mut shape_ids: Vec<u32> = conn.iter().map(|&i| i as u32).collect();
+    let mut heaviside = Vec::new();
+    let mut node_side = [0i8; 10];
+    let mut cells = Vec::new();
+    let mut cell = |vertices: [Point3<f64>; 4], side: i8| {
+        let volume = tet_volume(&vertices);
+        if volume > 0.0 {
+            cells.push(Cell {
+                vertices,
+                side,
+                volume,
+            });
+        }
+    };
+    match (cut, cut.map(|c| &c.elements[e])) {
+        (Some(c), Some(ElementCut::Cut { sub_tets, .. })) => {
+            for (k, &i) in conn.iter().enumerate() {
+                node_side[k] = c.node_side[i];
+                if let Some(j) = c.enriched[i] {
+                    heaviside.push(k);
+                    shape_ids.push((n_nodes + j) as u32);
+                }
+            }
+            for s in sub_tets {
+                cell(s.vertices, s.side);
+            }
+        }
+        (Some(c), Some(ElementCut::Touched { side })) => {
+            for (k, &i) in conn.iter().enumerate() {
+                node_side[k] = c.node_side[i];
+                if let Some(j) = c.enriched[i] {
+                    if psi(*side, c.node_side[i]) != 0.0 {
+                        heaviside.push(k);
+                        shape_ids.push((n_nodes + j) as u32);
+                    }
+                }
+            }
+            cell(verts, *side);
+        }
+        _ => cell(verts, 0),
+    }
+    let tip = cut.and_then(|c| ElementShapes::new(mesh, c, e, &dl, heaviside.clone()));
+    if let (Some(shapes), Some(c)) = (&tip, cut) {
+        shape_ids.extend(shapes.tip_shape_ids(n_nodes + c.n_enriched));
+    }
+    Ok(ElementCells {
+        verts,
+        dl,
+        shape_ids,
+        heaviside,
+        node_side,
+        cells,
+        tip,
+    })
+}
+
+/// Step 2's result for one element: everything its cells contribute, in
+/// local shape order.
+struct ElementBlock {
+    shape_ids: Vec<u32>,
+    /// Local index of the first Heaviside shape function (nodes per element).
+    heaviside_start: usize,
+    /// Integration groups, `grads` relative to this block's gradients.
+    groups: Vec<Group>,
+    grads: Vec<Vector3<f64>>,
+    /// ∫ f φ_a (3 per shape function; empty without body force).
+    load: Vec<f64>,
+    /// Lumped mass per shape function, lumped u–a coupling per Heaviside
+    /// shape function, consistent mass (m × m); empty without mass.
+    lumped: Vec<f64>,
+    coupling: Vec<f64>,
+    mass: Vec<f64>,
+}
+
+/// What step 2 integrates with: the rules, loads and density of a build.
+struct Integrator<'a> {
+    mesh: &'a TetMesh,
+    rho: f64,
+    integration: Integration,
+    gravity: Option<Vector3<f64>>,
+    body_force: Option<&'a BodyForce>,
+    need_mass: bool,
+}
+
+impl Integrator<'_> {
+    fn has_load(&self) -> bool {
+        self.gravity.is_some() || self.body_force.is_some()
+    }
+
+    /// The body force per unit volume at `x`.
+    fn force(&self, x: &Point3<f64>) -> Vector3<f64> {
+        let mut f = self.gravity.map_or(Vector3::zeros(), |g| g * self.rho);
+        if let Some(bf) = self.body_force {
+            f += bf(x);
+        }
+        f
+    }
+
+    /// Step 2: one walk over the element's cells. With `direct` its load
+    /// and lumped mass go straight into those global vectors, point by point
+    /// as they are integrated (the build), else into the block's own (an update).
+    fn block(&self, cells: &ElementCells, direct: Option<&mut Globals>) -> ElementBlock {
+        let m = cells.shape_ids.len();
+        let mut block = ElementBlock {
+            shape_ids: cells.shape_ids.clone(),
+            heaviside_start: self.mesh.kind.nodes(),
+            groups: Vec::new(),
+            grads: Vec::new(),
+            load: if self.has_load() && direct.is_none() {
+                vec![0.0; 3 * m]
+            } else {
+                Vec::new()
+            },
+            lumped: Vec::new(),
+            coupling: Vec::new(),
+            mass: Vec::new(),
+        };
+        if self.need_mass {
+            if direct.is_none() {
+                block.lumped = vec![0.0; m];
+                block.coupling = vec![0.0; cells.heaviside.len()];
+            }
+            block.mass = vec![0.0; m * m];
+        }
+        let mut sink = Sink {
+            direct,
+            n_nodes: self.mesh.n_nodes(),
+        };
+        match &cells.tip {
+            Some(shapes) => self.tip_block(cells, shapes, &mut block, &mut sink),
+            None => self.standard_block(cells, &mut block, &mut sink),
+        }
+        block
+    }
+
+    /// Elements holding tip-enriched nodes: one group per quadrature point,
+    /// the rules of [`ElementShapes::cell_rule`].
+    fn tip_block(
+        &self,
+        cells: &ElementCells,
+        shapes: &ElementShapes,
+        block: &mut ElementBlock,
+        sink: &mut Sink<'_>,
+    ) {
+        let kind = self.mesh.kind;
+        let nn = kind.nodes();
+        let m = block.shape_ids.len();
+        let mut vals = vec![0.0; m];
+        let mut gr = vec![Vector3::zeros(); m];
+        for cell in &cells.cells {
+            let (mut int_n, mut int_n2) = ([0.0; 10], [0.0; 10]);
+            for q in shapes.cell_rule(&cell.vertices) {
+                let bary = crate::mesh::barycentric(&cells.verts, &q.x).unwrap_or([0.25; 4]);
+                let w = q.weight;
+                shapes.eval(&bary, cell.side, &mut vals, &mut gr);
+                block.groups.push(Group {
+                    weight: w,
+                    grads: block.grads.len() as u32,
+                });
+                block.grads.extend_from_slice(&gr);
+                if self.has_load() {
+                    let f = self.force(&q.x);
+                    for (a, &v) in vals.iter().enumerate() {
+                        for c in 0..3 {
+                            sink.load(block, a, c, w * f[c] * v);
+                        }
+                    }
+                }
+                if self.need_mass {
+                    for a in 0..m {
+                        for b in 0..m {
+                            block.mass[a * m + b] += self.rho * w * vals[a] * vals[b];
+                        }
+                    }
+                    for k in 0..nn {
+                        int_n[k] += w * vals[k];
+                        int_n2[k] += w * vals[k] * vals[k];
+                    }
+                }
+            }
+            if self.need_mass {
+                self.lump(cells, cell, &int_n, &int_n2, block, sink);
+            }
+        }
+        if self.need_mass {
+            // Tip DOFs: the diagonal of the consistent mass (no coupling).
+            for a in nn + cells.heaviside.len()..m {
+                let diagonal = block.mass[a * m + a];
+                sink.lumped(block, a, diagonal);
+            }
+        }
+    }
+
+    /// Elements without tip functions: per cell, the stiffness points
+    /// (grouped per side for Tet4: the strain is constant there), the load
+    /// points and the mass points.
+    fn standard_block(&self, cells: &ElementCells, block: &mut ElementBlock, sink: &mut Sink<'_>) {
+        let kind = self.mesh.kind;
+        let nn = kind.nodes();
+        let m = block.shape_ids.len();
+        let grouped = kind == ElementKind::Tet4 && self.integration == Integration::Grouped;
+        let stiffness_rule = quadrature::rule(if grouped { 1 } else { 2 });
+        // Gravity is constant (degree = shape degree); a varying body force gets degree 5.
+        let load_rule = if self.body_force.is_some() {
+            quadrature::rule(5)
+        } else {
+            stiffness_rule
+        };
+        let mass_rule = quadrature::rule(match kind {
+            ElementKind::Tet4 => 2,
+            ElementKind::Tet10 => 4,
+        });
+        let mut nvals = [0.0; 10];
+        let mut ngrads = [Vector3::zeros(); 10];
+        let mut shape_val = vec![0.0; m];
+        let mut side_group: [Option<usize>; 3] = [None; 3];
+        for cell in &cells.cells {
+            for q in stiffness_rule {
+                let (bary, w) = map_point(&cells.verts, &cell.vertices, q, cell.volume);
+                shape_gradients(kind, &bary, &cells.dl, &mut ngrads);
+                let g = match (grouped, side_group[(cell.side + 1) as usize]) {
+                    (true, Some(g)) => g,
+                    _ => {
+                        let g = block.groups.len();
+                        block.groups.push(Group {
+                            weight: 0.0,
+                            grads: block.grads.len() as u32,
+                        });
+                        block.grads.extend(std::iter::repeat_n(Vector3::zeros(), m));
+                        if grouped {
+                            side_group[(cell.side + 1) as usize] = Some(g);
+                        }
+                        g
+                    }
+                };
+                // For Tet4 all points of a side have the same gradients: store them once.
+                let gstart = block.groups[g].grads as usize;
+                if !grouped || block.groups[g].weight == 0.0 {
+                    block.grads[gstart..gstart + nn].copy_from_slice(&ngrads[..nn]);
+                    for (j, &k) in cells.heaviside.iter().enumerate() {
+                        block.grads[gstart + nn + j] = ngrads[k] * cells.psi(cell, k);
+                    }
+                }
+                block.groups[g].weight += w;
+            }
+            if self.has_load() {
+                for q in load_rule {
+                    let (bary, w) = map_point(&cells.verts, &cell.vertices, q, cell.volume);
+                    eval_shapes(
+                        kind,
+                        &bary,
+                        &cells.heaviside,
+                        |k| cells.psi(cell, k),
+                        &mut nvals,
+                        &mut shape_val,
+                    );
+                    let x = cells
+                        .verts
+                        .iter()
+                        .zip(bary)
+                        .fold(Vector3::zeros(), |s, (p, l)| s + p.coords * l);
+                    let f = self.force(&Point3::from(x));
+                    for (a, &phi) in shape_val.iter().enumerate() {
+                        for c in 0..3 {
+                            sink.load(block, a, c, w * f[c] * phi);
+                        }
+                    }
+                }
+            }
+            if self.need_mass {
+                // Consistent element mass M_ab = ρ ∫ φ_a φ_b (eq. 77–80), and
+                // ∫ N_k, ∫ N_k² over the cell for the lumped mass.
+                let (mut int_n, mut int_n2) = ([0.0; 10], [0.0; 10]);
+                for q in mass_rule {
+                    let (bary, w) = map_point(&cells.verts, &cell.vertices, q, cell.volume);
+                    eval_shapes(
+                        kind,
+                        &bary,
+                        &cells.heaviside,
+                        |k| cells.psi(cell, k),
+                        &mut nvals,
+                        &mut shape_val,
+                    );
+                    for a in 0..m {
+                        for b in 0..m {
+                            block.mass[a * m + b] += self.rho * w * shape_val[a] * shape_val[b];
+                        }
+                    }
+                    for k in 0..nn {
+                        int_n[k] += w * nvals[k];
+                        int_n2[k] += w * nvals[k] * nvals[k];
+                    }
+                }
+                self.lump(cells, cell, &int_n, &int_n2, block, sink);
+            }
+        }
+    }
+
+    /// Adds one cell's lumped mass (seed eq. 81–82, [`lump_cell_mass`]) to the block.
+    fn lump(
+        &self,
+        cells: &ElementCells,
+        cell: &Cell,
+        int_n: &[f64; 10],
+        int_n2: &[f64; 10],
+        block: &mut ElementBlock,
+        sink: &mut Sink<'_>,
+    ) {
+        let nn = self.mesh.kind.nodes();
+        let share = lump_cell_mass(self.mesh.kind, self.rho, cell.volume, int_n, int_n2);
+        for k in 0..nn {
+            sink.lumped(block, k, share[k]);
+        }
+        for (j, &k) in cells.heaviside.iter().enumerate() {
+            let p = cells.psi(cell, k);
+            sink.lumped(block, nn + j, p * p * share[k]);
+            sink.coupling(block, j, p * share[k]);
+        }
+    }
+}
+
+/// Where an element's load and lumped mass go as they are integrated: the
+/// global vectors (a build, so each DOF sums its terms in the same order as
+/// one global loop), or the block's own (an update adds or removes whole blocks).
+struct Sink<'g> {
+    direct: Option<&'g mut Globals>,
+    n_nodes: usize,
+}
+
+impl Sink<'_> {
+    fn load(&mut self, block: &mut ElementBlock, a: usize, c: usize, value: f64) {
+        match self.direct.as_deref_mut() {
+            Some(g) => g.load[3 * block.shape_ids[a] as usize + c] += value,
+            None => block.load[3 * a + c] += value,
+        }
+    }
+
+    fn lumped(&mut self, block: &mut ElementBlock, a: usize, value: f64) {
+        match self.direct.as_deref_mut() {
+            Some(g) => {
+                if let Some(l) = g.lumped.as_mut() {
+                    l[block.shape_ids[a] as usize] += value;
+                }
+            }
+            None => block.lumped[a] += value,
+        }
+    }
+
+    /// Coupling of the block's `j`-th Heaviside shape function.
+    fn coupling(&mut self, block: &mut ElementBlock, j: usize, value: f64) {
+        let n_nodes = self.n_nodes;
+        match self.direct.as_deref_mut() {
+            Some(g) => {
+                if let Some(cp) = g.coupling.as_mut() {
+                    cp[block.shape_ids[block.heaviside_start + j] as usize - n_nodes] += value;
+                }
+            }
+            None => block.coupling[j] += value,
+        }
+    }
+}
+
+/// The per-element flat arrays of a model, appended element by element.
+struct FlatElements {
+    elements: Vec<ElementData>,
+    shape_ids: Vec<u32>,
+    groups: Vec<Group>,
+    grads: Vec<Vector3<f64>>,
+    group_element: Vec<u32>,
+    scatter_len: usize,
+}
+
+impl FlatElements {
+    fn with_capacity(n_elements: usize, n_shapes: usize) -> FlatElements {
+        FlatElements {
+            elements: Vec::with_capacity(n_elements),
+            shape_ids: Vec::with_capacity(n_shapes),
+            groups: Vec::with_capacity(n_elements),
+            grads: Vec::with_capacity(n_shapes),
+            group_element: Vec::with_capacity(n_elements),
+            scatter_len: 0,
+        }
+    }
+
+    /// Appends element `e`'s shape functions, groups and gradients.
+    fn push(&mut self, e: usize, shape_ids: &[u32], groups: &[Group], grads: &[Vector3<f64>]) {
+        let m = shape_ids.len();
+        let first = self.shape_ids.len();
+        self.shape_ids.extend_from_slice(shape_ids);
+        let group_start = self.groups.len();
+        let offset = self.grads.len() as u32 - groups.first().map_or(0, |g| g.grads);
+        self.groups.extend(groups.iter().map(|g| Group {
+            weight: g.weight,
+            grads: g.grads + offset,
+        }));
+        self.grads.extend_from_slice(grads);
+        self.group_element
+            .extend(std::iter::repeat_n(e as u32, groups.len()));
+        self.elements.push(ElementData {
+            shapes: first..first + m,
+            groups: group_start..self.groups.len(),
+            scatter: self.scatter_len,
+        });
+        self.scatter_len += 9 * m * m;
+    }
+
+    fn push_block(&mut self, e: usize, block: &ElementBlock) {
+        self.push(e, &block.shape_ids, &block.groups, &block.grads);
+    }
+}
+
+/// The global vectors the element blocks add into: load, lumped mass and coupling.
+struct Globals {
+    load: Vec<f64>,
+    lumped: Option<Vec<f64>>,
+    coupling: Option<Vec<f64>>,
+}
+
+impl Globals {
+    fn new(n_shape: usize, cut: Option<&CutSetup>, need_mass: bool) -> Globals {
+        let n_enriched = cut.map_or(0, |c| c.n_enriched);
+        Globals {
+            load: vec![0.0; 3 * n_shape],
+            lumped: need_mass.then(|| vec![0.0; n_shape]),
+            coupling: need_mass.then(|| vec![0.0; n_enriched]),
+        }
+    }
+}
+
+/// Step 3: global DOF → equation number, prescribed DOFs eliminated ([`NONE`]).
+fn number_dofs(
+    n_shape: usize,
+    fixed: &[(usize, [Option<f64>; 3])],
+) -> (Vec<u32>, Vec<Prescribed>, usize) {
+    let mut equation = vec![0u32; 3 * n_shape];
+    let mut prescribed = Vec::new();
+    for &(node, comps) in fixed {
+        for (c, v) in comps.iter().enumerate() {
+            if let Some(v) = v {
+                let dof = 3 * node + c;
+                if equation[dof] != NONE {
+                    equation[dof] = NONE;
+                    prescribed.push(Prescribed { dof, value: *v });
+                }
+            }
+        }
+    }
+    let mut n_free = 0usize;
+    for eq in equation.iter_mut() {
+        if *eq != NONE {
+            *eq = n_free as u32;
+            n_free += 1;
+        }
+    }
+    (equation, prescribed, n_free)
+}
+
+/// Adds the lower-triangle entries of an element with equations `dofs` to `cols`.
+fn push_entries(dofs: &[u32], cols: &mut [Vec<usize>]) {
+    for &r in dofs {
+        if r == NONE {
+            continue;
+        }
+        for &c in dofs {
+            if c != NONE && r >= c {
+                cols[c as usize].push(r as usize);
+            }
+        }
+    }
+}
+
+/// Writes the CSC positions of element `el`'s (3m)² entries into `scatter`.
+fn element_scatter(
+    el: &ElementData,
+    shapes: &[u32],
+    equation: &[u32],
+    pattern: &Pattern,
+    scatter: &mut [u32],
+) {
+    let dofs = element_equations(shapes, equation);
+    let n = dofs.len();
+    for (p, &r) in dofs.iter().enumerate() {
+        for (q, &c) in dofs.iter().enumerate() {
+            scatter[el.scatter + p * n + q] = if r != NONE && c != NONE && r >= c {
+                pattern
+                    .position(r as usize, c as usize)
+                    .expect("pattern holds every element entry") as u32
+            } else {
+                NONE
+            };
+        }
+    }
+}
+
+/// Step 4: the lower-triangular pattern of the free system and each element's scatter map.
+fn pattern_and_scatter(
+    flat: &FlatElements,
+    equation: &[u32],
+    n_free: usize,
+) -> (Pattern, Vec<u32>) {
+    let mut cols: Vec<Vec<usize>> = vec![Vec::new(); n_free];
+    for el in &flat.elements {
+        let dofs = element_equations(&flat.shape_ids[el.shapes.clone()], equation);
+        push_entries(&dofs, &mut cols);
+    }
+    let pattern = Pattern::from_entries(n_free, cols);
+    let mut scatter = vec![NONE; flat.scatter_len];
+    for el in &flat.elements {
+        element_scatter(
+            el,
+            &flat.shape_ids[el.shapes.clone()],
+            equation,
+            &pattern,
+            &mut scatter,
+        );
+    }
+    (pattern, scatter)
+}
+
+/// Adds `sign` × an element's consistent mass `me` (m × m, per shape
+/// function; the same for the three components) to the values on the pattern.
+fn add_element_mass(el: &ElementData, me: &[f64], scatter: &[u32], values: &mut [f64], sign: f64) {
+    let m = el.shapes.len();
+    for a in 0..m {
+        for b in 0..m {
+            for c in 0..3 {
+                let pos = scatter[el.scatter + (3 * a + c) * 3 * m + 3 * b + c];
+                if pos != NONE {
+                    values[pos as usize] += sign * me[a * m + b];
+                }
+            }
+        }
+    }
+}
+
+/// Tet10 mid-nodes next to tip-enriched vertices: their edge (for
+/// [`Model::node_displacement`]); empty otherwise.
+fn mid_edges(mesh: &TetMesh, cut: Option<&CutSetup>) -> Vec<Option<[u32; 2]>> {
+    let mut mid_edge = Vec::new();
+    if let (ElementKind::Tet10, Some(c)) = (mesh.kind, cut) {
+        if c.n_tip > 0 {
+            mid_edge = vec![None; mesh.n_nodes()];
+            for e in 0..mesh.n_elements() {
+                let conn = mesh.element(e);
+                for (k, &(a, b)) in TET10_EDGES.iter().enumerate() {
+                    if c.tip[conn[a]].is_some() || c.tip[conn[b]].is_some() {
+                        mid_edge[conn[4 + k]] = Some([conn[a] as u32, conn[b] as u32]);
+                    }
+                }
+            }
+        }
+    }
+    mid_edge
 }
 
 impl Model {
