@@ -8,7 +8,9 @@
 //!   triangles between consecutive edges ([`TriangleSurface`]).
 //! - A *cut event* is a step after which the cut set-up differs (elements
 //!   newly cut or touched, nodes newly enriched). The set-up is rebuilt and
-//!   the model built again; the Newmark state is mapped onto the new DOFs:
+//!   the model updated where it changed ([`Model::update_cut`]: only the
+//!   elements whose cut or enrichment changed are integrated again); the
+//!   Newmark state is mapped onto the new DOFs:
 //!   standard DOFs keep their values, enriched DOFs of nodes that were
 //!   enriched before keep theirs, new shifted-enrichment DOFs start at zero
 //!   displacement, velocity and acceleration. Since Nᵢ(H − Hᵢ)·0 = 0 (seed
@@ -18,9 +20,7 @@
 //! - A static scene takes the completed sweep ([`CutSet::completed`]).
 
 use crate::assembly::Rotations;
-use crate::cut::{
-    setup_cut, CutError, CutInput, CutSetup, CutSurface, ElementCut, FrontMode, PlanarPatch,
-};
+use crate::cut::{setup_cut, CutError, CutInput, CutSetup, CutSurface, FrontMode, PlanarPatch};
 use crate::dynamics::{DynamicError, DynamicOptions, Energies, Newmark, State};
 use crate::mesh::TetMesh;
 use crate::model::{Model, ModelError};
@@ -637,31 +637,7 @@ pub fn same_setup(a: Option<&CutSetup>, b: Option<&CutSetup>) -> bool {
                 && a.elements
                     .iter()
                     .zip(&b.elements)
-                    .all(|(x, y)| same_element(x, y))
-        }
-        _ => false,
-    }
-}
-
-fn same_element(a: &ElementCut, b: &ElementCut) -> bool {
-    match (a, b) {
-        (ElementCut::Uncut, ElementCut::Uncut) => true,
-        (ElementCut::Touched { side: x }, ElementCut::Touched { side: y }) => x == y,
-        (
-            ElementCut::Cut {
-                sub_tets: s,
-                partial: p,
-            },
-            ElementCut::Cut {
-                sub_tets: t,
-                partial: q,
-            },
-        ) => {
-            p == q
-                && s.len() == t.len()
-                && s.iter()
-                    .zip(t)
-                    .all(|(x, y)| x.side == y.side && x.vertices == y.vertices)
+                    .all(|(x, y)| crate::model::same_element_cut(x, y))
         }
         _ => false,
     }
@@ -737,6 +713,11 @@ pub struct Event {
     pub after: Energies,
     /// Whether the sparsity pattern changed (symbolic factorisation redone).
     pub pattern_changed: bool,
+    /// Elements integrated again ([`Model::update_cut`]).
+    pub changed_elements: usize,
+    /// Seconds of the model update and of the symbolic factorisation (both in `seconds`).
+    pub model_seconds: f64,
+    pub symbolic_seconds: f64,
     /// Seconds spent in the event (set-up, model, state map, symbolic).
     pub seconds: f64,
 }
@@ -881,16 +862,29 @@ pub fn run_dynamic(
         sweep.factorisations += nm.factorisations() - counted;
         let state = nm.state.clone();
         let old_chol = nm.into_cholesky();
-        let new_model = build(setup)?;
+        let t_model = Instant::now();
+        // Only the elements the grown cut changed are integrated again
+        // (a model with a varying body force is built again).
+        let (new_model, changed_elements) = if model.body_force {
+            let m = build(setup)?;
+            let n = m.mesh.n_elements();
+            (m, n)
+        } else {
+            let (m, stats) = model.update_cut(setup)?;
+            (m, stats.changed_elements)
+        };
+        let model_seconds = t_model.elapsed().as_secs_f64();
         let mapped = map_state(&model, &new_model, &state);
         let pattern_changed = new_model.pattern.col_ptr != model.pattern.col_ptr
             || new_model.pattern.row_idx != model.pattern.row_idx;
+        let t_symbolic = Instant::now();
         chol = if pattern_changed {
             sweep.symbolic += 1;
             Cholesky::new(&new_model.pattern)?
         } else {
             old_chol
         };
+        let symbolic_seconds = t_symbolic.elapsed().as_secs_f64();
         let event = Event {
             step,
             time: state.time,
@@ -901,6 +895,9 @@ pub fn run_dynamic(
             before,
             after: Energies::default(),
             pattern_changed,
+            changed_elements,
+            model_seconds,
+            symbolic_seconds,
             seconds: t.elapsed().as_secs_f64(),
         };
         model = new_model;

@@ -35,6 +35,10 @@ pub enum ModelError {
     DegenerateElement { element: usize, volume: f64 },
     #[error("the model has {0} DOFs, more than this solver indexes")]
     TooLarge(usize),
+    #[error(
+        "a model with a body force beyond gravity cannot be updated at a cut event: build it again"
+    )]
+    BodyForceUpdate,
 }
 
 /// A prescribed value for one global DOF.
@@ -1213,6 +1217,41 @@ impl Globals {
             coupling: need_mass.then(|| vec![0.0; n_enriched]),
         }
     }
+
+    /// Adds `sign` × the block's load and lumped mass; shape ids [`NONE`] are skipped.
+    fn add_signed(&mut self, block: &ElementBlock, sign: f64, n_nodes: usize) {
+        let ids = &block.shape_ids;
+        for (a, f) in block.load.chunks_exact(3).enumerate() {
+            if ids[a] == NONE {
+                continue;
+            }
+            let s = ids[a] as usize;
+            for c in 0..3 {
+                self.load[3 * s + c] += sign * f[c];
+            }
+        }
+        if let (Some(lumped), Some(coupling)) = (self.lumped.as_mut(), self.coupling.as_mut()) {
+            for (a, &mass) in block.lumped.iter().enumerate() {
+                if ids[a] != NONE {
+                    lumped[ids[a] as usize] += sign * mass;
+                }
+            }
+            for (j, &c) in block.coupling.iter().enumerate() {
+                let s = ids[block.heaviside_start + j];
+                if s != NONE {
+                    coupling[s as usize - n_nodes] += sign * c;
+                }
+            }
+        }
+    }
+
+    fn add(&mut self, block: &ElementBlock, n_nodes: usize) {
+        self.add_signed(block, 1.0, n_nodes);
+    }
+
+    fn sub_mapped(&mut self, block: &ElementBlock, n_nodes: usize) {
+        self.add_signed(block, -1.0, n_nodes);
+    }
 }
 
 /// Step 3: global DOF → equation number, prescribed DOFs eliminated ([`NONE`]).
@@ -1428,5 +1467,404 @@ impl Model {
 
     fn prescribed_nodes_contains(&self, node: usize) -> bool {
         (0..3).any(|c| self.equation[3 * node + c] == NONE)
+    }
+}
+
+// ---------------------------------------------------------------------------
+// A cut event: the model of a grown cut from the model of the old one.
+
+/// What [`Model::update_cut`] kept and recomputed.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct UpdateStats {
+    /// Elements integrated again (their cut, enrichment or front changed).
+    pub changed_elements: usize,
+    /// Free equations appended, and old ones dropped (tip → Heaviside).
+    pub new_equations: usize,
+    pub dropped_equations: usize,
+}
+
+/// Whether element `e` has the same shape functions and integration cells
+/// under the cut set-ups `a` and `b` (its block of the model is then the same):
+/// the same classification and sub-tets, the same Heaviside-enriched nodes
+/// on the same sides, the same tip-enriched nodes and, where it holds one,
+/// the same level sets at its nodes.
+pub fn same_element_model(
+    mesh: &TetMesh,
+    a: Option<&CutSetup>,
+    b: Option<&CutSetup>,
+    e: usize,
+) -> bool {
+    let conn = mesh.element(e);
+    let uncut = ElementCut::Uncut;
+    let (ea, eb) = (
+        a.map_or(&uncut, |c| &c.elements[e]),
+        b.map_or(&uncut, |c| &c.elements[e]),
+    );
+    if !same_element_cut(ea, eb) {
+        return false;
+    }
+    let tip = |c: Option<&CutSetup>, i: usize| {
+        c.is_some_and(|c| c.tip.get(i).copied().flatten().is_some())
+    };
+    let has_tip = |c: Option<&CutSetup>| conn.iter().any(|&i| tip(c, i));
+    let (ta, tb) = (has_tip(a), has_tip(b));
+    if ta != tb {
+        return false;
+    }
+    if matches!(ea, ElementCut::Uncut) && !ta {
+        // Its shape functions are its nodes' whatever the enrichment around it.
+        return true;
+    }
+    let enriched = |c: Option<&CutSetup>, i: usize| c.is_some_and(|c| c.enriched[i].is_some());
+    let side = |c: Option<&CutSetup>, i: usize| c.map_or(0, |c| c.node_side[i]);
+    for &i in conn {
+        if enriched(a, i) != enriched(b, i)
+            || (enriched(a, i) && side(a, i) != side(b, i))
+            || tip(a, i) != tip(b, i)
+        {
+            return false;
+        }
+    }
+    if ta {
+        let (Some(a), Some(b)) = (a, b) else {
+            return false;
+        };
+        let level = |c: &CutSetup, i: usize| {
+            (
+                c.phi[i].to_bits(),
+                c.front_level.get(i).map(|x| x.to_bits()),
+            )
+        };
+        if conn
+            .iter()
+            .any(|&i| level(a, i) != level(b, i) || a.node_side[i] != b.node_side[i])
+        {
+            return false;
+        }
+    }
+    true
+}
+
+/// Whether two element classifications are the same, sub-tets bit for bit.
+pub fn same_element_cut(a: &ElementCut, b: &ElementCut) -> bool {
+    match (a, b) {
+        (ElementCut::Uncut, ElementCut::Uncut) => true,
+        (ElementCut::Touched { side: x }, ElementCut::Touched { side: y }) => x == y,
+        (
+            ElementCut::Cut {
+                sub_tets: s,
+                partial: p,
+            },
+            ElementCut::Cut {
+                sub_tets: t,
+                partial: q,
+            },
+        ) => {
+            p == q
+                && s.len() == t.len()
+                && s.iter()
+                    .zip(t)
+                    .all(|(x, y)| x.side == y.side && x.vertices == y.vertices)
+        }
+        _ => false,
+    }
+}
+
+/// Shape id in `new` of each shape function of `old` (the same node, the
+/// same kind of enrichment, the same branch), [`NONE`] where it is gone.
+fn shape_map(
+    n_nodes: usize,
+    old: Option<&CutSetup>,
+    new: Option<&CutSetup>,
+    n_old: usize,
+) -> Vec<u32> {
+    let mut map = vec![NONE; n_old];
+    for (i, m) in map.iter_mut().enumerate().take(n_nodes) {
+        *m = i as u32;
+    }
+    let (Some(o), Some(n)) = (old, new) else {
+        return map;
+    };
+    for i in 0..n_nodes {
+        if let (Some(jo), Some(jn)) = (o.enriched[i], n.enriched[i]) {
+            map[n_nodes + jo] = (n_nodes + jn) as u32;
+        }
+        if let (Some(to), Some(tn)) = (
+            o.tip.get(i).copied().flatten(),
+            n.tip.get(i).copied().flatten(),
+        ) {
+            for b in 0..N_BRANCH {
+                map[n_nodes + o.n_enriched + N_BRANCH * to + b] =
+                    (n_nodes + n.n_enriched + N_BRANCH * tn + b) as u32;
+            }
+        }
+    }
+    map
+}
+
+impl Model {
+    /// The model of the same mesh, fixes and loads with the cut set-up
+    /// `cut` in place of its own: a cut event of a progressive cut.
+    ///
+    /// Only the elements whose shape functions or cells changed
+    /// ([`same_element_model`]: newly cut or touched, crossed by the moved
+    /// front, holding a node whose enrichment changed) are integrated again;
+    /// the others keep their groups and gradients (the standard block K_uu of
+    /// an element does not change when it is cut: METHODS.md, "Blades").
+    /// Loads, lumped and consistent mass are the old ones with the changed
+    /// elements' old contributions taken out and their new ones added. The
+    /// shape functions are numbered as [`Model::build`] numbers them, so
+    /// [`crate::blade::map_state`] applies; the *equations* of DOFs that
+    /// exist before and after keep their numbers (compacted in order where
+    /// DOFs disappear), new ones are appended, and the pattern is the old
+    /// one (entries of gone DOFs left out) with the changed elements'
+    /// entries added. It equals a full build up to round-off (the test
+    /// `incremental_update_equals_a_full_build_at_every_event`), except that
+    /// the pattern may keep entries a changed element no longer couples
+    /// (zero values).
+    ///
+    /// A model built with a body force beyond gravity cannot be updated (it
+    /// does not keep the function): [`ModelError::BodyForceUpdate`].
+    pub fn update_cut(&self, cut: Option<CutSetup>) -> Result<(Model, UpdateStats), ModelError> {
+        if self.body_force {
+            return Err(ModelError::BodyForceUpdate);
+        }
+        let mesh = &self.mesh;
+        let n_nodes = mesh.n_nodes();
+        let n_shape = shape_count(mesh, cut.as_ref())?;
+        let need_mass = self.lumped_mass.is_some();
+        let map = shape_map(n_nodes, self.cut.as_ref(), cut.as_ref(), self.n_shape);
+        let integrator = Integrator {
+            mesh,
+            rho: self.material.density,
+            integration: self.integration,
+            gravity: self.gravity,
+            body_force: None,
+            need_mass,
+        };
+        let mut stats = UpdateStats::default();
+
+        // Globals: the old ones on the new shape ids.
+        let mut globals = Globals::new(n_shape, cut.as_ref(), need_mass);
+        for (so, &sn) in map.iter().enumerate() {
+            if sn == NONE {
+                continue;
+            }
+            let sn = sn as usize;
+            globals.load[3 * sn..3 * sn + 3].copy_from_slice(&self.load[3 * so..3 * so + 3]);
+            if let (Some(l), Some(lo)) = (globals.lumped.as_mut(), &self.lumped_mass) {
+                l[sn] = lo[so];
+            }
+            if let (Some(c), Some(co), true) = (
+                globals.coupling.as_mut(),
+                &self.lumped_coupling,
+                so >= n_nodes && so < n_nodes + self.n_enriched(),
+            ) {
+                c[sn - n_nodes] = co[so - n_nodes];
+            }
+        }
+
+        // Elements: kept, or integrated again (old block out, new block in).
+        let mut flat = FlatElements::with_capacity(mesh.n_elements(), self.shape_ids.len());
+        let mut changed: Vec<(usize, ElementBlock)> = Vec::new();
+        let mut old_masses: Vec<(usize, Vec<f64>)> = Vec::new();
+        for e in 0..mesh.n_elements() {
+            let el = &self.elements[e];
+            if same_element_model(mesh, self.cut.as_ref(), cut.as_ref(), e) {
+                let ids: Vec<u32> = self.shape_ids[el.shapes.clone()]
+                    .iter()
+                    .map(|&s| map[s as usize])
+                    .collect();
+                let groups = &self.groups[el.groups.clone()];
+                let m = el.shapes.len();
+                let (g0, g1) = match (groups.first(), groups.last()) {
+                    (Some(f), Some(l)) => (f.grads as usize, l.grads as usize + m),
+                    _ => (0, 0),
+                };
+                flat.push(e, &ids, groups, &self.grads[g0..g1]);
+                continue;
+            }
+            let old_cells = element_cells(mesh, self.cut.as_ref(), e)?;
+            let mut old_block = integrator.block(&old_cells, None);
+            for s in old_block.shape_ids.iter_mut() {
+                *s = map[*s as usize];
+            }
+            globals.sub_mapped(&old_block, n_nodes);
+            if need_mass {
+                old_masses.push((e, std::mem::take(&mut old_block.mass)));
+            }
+            let cells = element_cells(mesh, cut.as_ref(), e)?;
+            let block = integrator.block(&cells, None);
+            globals.add(&block, n_nodes);
+            flat.push_block(e, &block);
+            changed.push((e, block));
+        }
+        stats.changed_elements = changed.len();
+
+        // Equations: the old numbers of DOFs that stay (compacted in order), new ones appended.
+        let mut old_of_new = vec![NONE; n_shape];
+        for (so, &sn) in map.iter().enumerate() {
+            if sn != NONE {
+                old_of_new[sn as usize] = so as u32;
+            }
+        }
+        let mut eq_map = vec![NONE; self.n_free];
+        for (dof, &eq) in self.equation.iter().enumerate() {
+            if eq != NONE && map[dof / 3] != NONE {
+                eq_map[eq as usize] = 0;
+            }
+        }
+        let mut n_free = 0u32;
+        for m in eq_map.iter_mut() {
+            if *m == 0 {
+                *m = n_free;
+                n_free += 1;
+            }
+        }
+        stats.dropped_equations = self.n_free - n_free as usize;
+        let mut equation = vec![NONE; 3 * n_shape];
+        for (sn, &so) in old_of_new.iter().enumerate() {
+            if so != NONE {
+                for c in 0..3 {
+                    let eq = self.equation[3 * so as usize + c];
+                    if eq != NONE {
+                        equation[3 * sn + c] = eq_map[eq as usize];
+                    }
+                }
+            } else {
+                // A new shape function (enriched: never prescribed).
+                for c in 0..3 {
+                    equation[3 * sn + c] = n_free;
+                    n_free += 1;
+                }
+            }
+        }
+        let n_free = n_free as usize;
+        stats.new_equations = n_free + stats.dropped_equations - self.n_free;
+
+        // Pattern: the old entries that stay, and the changed elements' entries.
+        let old = &self.pattern;
+        let mut cols: Vec<Vec<usize>> = vec![Vec::new(); n_free];
+        for c in 0..old.n {
+            let cn = eq_map[c];
+            if cn == NONE {
+                continue;
+            }
+            let col = &mut cols[cn as usize];
+            col.extend(
+                old.row_idx[old.col_ptr[c]..old.col_ptr[c + 1]]
+                    .iter()
+                    .filter_map(|&r| (eq_map[r] != NONE).then_some(eq_map[r] as usize)),
+            );
+        }
+        for (e, _) in &changed {
+            let el = &flat.elements[*e];
+            let dofs = element_equations(&flat.shape_ids[el.shapes.clone()], &equation);
+            push_entries(&dofs, &mut cols);
+        }
+        let pattern = Pattern::from_entries(n_free, cols);
+        // Old CSC position → new.
+        let mut position = vec![NONE; old.nnz()];
+        for c in 0..old.n {
+            let cn = eq_map[c];
+            if cn == NONE {
+                continue;
+            }
+            for p in old.col_ptr[c]..old.col_ptr[c + 1] {
+                let rn = eq_map[old.row_idx[p]];
+                if rn != NONE {
+                    position[p] = pattern
+                        .position(rn as usize, cn as usize)
+                        .expect("the new pattern holds the old entries")
+                        as u32;
+                }
+            }
+        }
+        let mut scatter = vec![NONE; flat.scatter_len];
+        let mut next_changed = changed.iter().map(|(e, _)| *e).peekable();
+        for (e, el) in flat.elements.iter().enumerate() {
+            if next_changed.next_if_eq(&e).is_some() {
+                element_scatter(
+                    el,
+                    &flat.shape_ids[el.shapes.clone()],
+                    &equation,
+                    &pattern,
+                    &mut scatter,
+                );
+            } else {
+                let old_el = &self.elements[e];
+                let n = 9 * el.shapes.len() * el.shapes.len();
+                for (s, &p) in scatter[el.scatter..el.scatter + n]
+                    .iter_mut()
+                    .zip(&self.scatter[old_el.scatter..old_el.scatter + n])
+                {
+                    *s = if p == NONE {
+                        NONE
+                    } else {
+                        position[p as usize]
+                    };
+                }
+            }
+        }
+
+        // Consistent mass: the old values moved, changed elements' old mass out, new in.
+        let consistent_mass = self.consistent_mass.as_ref().map(|old_values| {
+            let mut values = vec![0.0; pattern.nnz()];
+            for (p, &v) in old_values.iter().enumerate() {
+                if position[p] != NONE {
+                    values[position[p] as usize] += v;
+                }
+            }
+            for (e, me) in &old_masses {
+                let el = &self.elements[*e];
+                let m = el.shapes.len();
+                for a in 0..m {
+                    for b in 0..m {
+                        for c in 0..3 {
+                            let p = self.scatter[el.scatter + (3 * a + c) * 3 * m + 3 * b + c];
+                            if p != NONE && position[p as usize] != NONE {
+                                values[position[p as usize] as usize] -= me[a * m + b];
+                            }
+                        }
+                    }
+                }
+            }
+            for (e, block) in &changed {
+                add_element_mass(&flat.elements[*e], &block.mass, &scatter, &mut values, 1.0);
+            }
+            values
+        });
+        let mut shape_ref = self.shape_ref.clone();
+        shape_ref.resize(n_nodes, Vector3::zeros());
+        shape_ref.resize(n_shape, Vector3::zeros());
+        let mid_edge = mid_edges(mesh, cut.as_ref());
+        let model = Model {
+            mesh: mesh.clone(),
+            material: self.material,
+            lame: self.lame,
+            formulation: self.formulation,
+            integration: self.integration,
+            gravity: self.gravity,
+            body_force: false,
+            cut,
+            n_shape,
+            shape_ref,
+            elements: flat.elements,
+            shape_ids: flat.shape_ids,
+            groups: flat.groups,
+            grads: flat.grads,
+            group_element: flat.group_element,
+            equation,
+            n_free,
+            prescribed: self.prescribed.clone(),
+            pattern,
+            scatter,
+            load: globals.load,
+            lumped_mass: globals.lumped,
+            lumped_coupling: globals.coupling,
+            consistent_mass,
+            mid_edge,
+        };
+        Ok((model, stats))
     }
 }
