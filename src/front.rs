@@ -270,6 +270,104 @@ pub fn cell_rule(v: &[Point3<f64>; 4], on_front: [bool; 4], n: usize) -> Vec<Phy
     }
 }
 
+/// Distance from the front (φ = ψ = 0) to a cell whose vertices carry the
+/// level-set values `ls` = (φ, ψ), both linear over it: the distance from
+/// the origin to the convex hull of the vertex images in the (φ, ψ) plane
+/// (0 when the front passes through the cell).
+pub fn front_gap(ls: &[[f64; 2]; 4]) -> f64 {
+    let cross = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| {
+        (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+    };
+    let o = [0.0, 0.0];
+    for t in [[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]] {
+        let (a, b, c) = (ls[t[0]], ls[t[1]], ls[t[2]]);
+        let (s1, s2, s3) = (cross(a, b, o), cross(b, c, o), cross(c, a, o));
+        let has_neg = s1 < 0.0 || s2 < 0.0 || s3 < 0.0;
+        let has_pos = s1 > 0.0 || s2 > 0.0 || s3 > 0.0;
+        if !(has_neg && has_pos) && cross(a, b, c) != 0.0 {
+            return 0.0;
+        }
+    }
+    let mut gap = f64::INFINITY;
+    for i in 0..4 {
+        for j in i + 1..4 {
+            let (a, b) = (ls[i], ls[j]);
+            let d = [b[0] - a[0], b[1] - a[1]];
+            let len2 = d[0] * d[0] + d[1] * d[1];
+            let t = if len2 > 0.0 {
+                (-(a[0] * d[0] + a[1] * d[1]) / len2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            gap = gap.min((a[0] + t * d[0]).hypot(a[1] + t * d[1]));
+        }
+    }
+    gap
+}
+
+/// The eight children of a tet by edge midpoints (Bey's red refinement;
+/// the inner octahedron split along the diagonal m02–m13), with their
+/// vertices' values of any field linear over the tet.
+pub fn red_children<T: Copy>(
+    v: &[Point3<f64>; 4],
+    f: &[T; 4],
+    mid: impl Fn(T, T) -> T,
+) -> [([Point3<f64>; 4], [T; 4]); 8] {
+    let m = |a: usize, b: usize| {
+        (
+            Point3::from((v[a].coords + v[b].coords) * 0.5),
+            mid(f[a], f[b]),
+        )
+    };
+    let (v0, v1, v2, v3) = ((v[0], f[0]), (v[1], f[1]), (v[2], f[2]), (v[3], f[3]));
+    let (m01, m02, m03, m12, m13, m23) = (m(0, 1), m(0, 2), m(0, 3), m(1, 2), m(1, 3), m(2, 3));
+    let t = |a: (Point3<f64>, T), b: (Point3<f64>, T), c: (Point3<f64>, T), d: (Point3<f64>, T)| {
+        ([a.0, b.0, c.0, d.0], [a.1, b.1, c.1, d.1])
+    };
+    [
+        t(v0, m01, m02, m03),
+        t(m01, v1, m12, m13),
+        t(m02, m12, v2, m23),
+        t(m03, m13, m23, v3),
+        t(m01, m02, m03, m13),
+        t(m01, m02, m12, m13),
+        t(m02, m03, m13, m23),
+        t(m02, m12, m13, m23),
+    ]
+}
+
+/// A quadrature rule appending a cell's points.
+pub type LeafRule = dyn Fn(&[Point3<f64>; 4], &mut Vec<PhysicalPoint>);
+
+/// Quadrature on a cell that does not touch the front but may lie close to
+/// it (level sets `ls` at its vertices): red-refined towards the front
+/// while a piece's gap to the front is under `gap_ratio` times its own
+/// level-set diameter (at most `depth` times), `leaf` on each piece. The
+/// √r-type integrands of the tip functions are near-singular in a cell the
+/// front passes close to; on the pieces they are smoother relative to the
+/// piece, so the fixed leaf rule errs less.
+pub fn near_front_rule(
+    cell: &[Point3<f64>; 4],
+    ls: &[[f64; 2]; 4],
+    depth: usize,
+    gap_ratio: f64,
+    leaf: &LeafRule,
+    out: &mut Vec<PhysicalPoint>,
+) {
+    let diam = (0..4)
+        .flat_map(|a| (a + 1..4).map(move |b| (a, b)))
+        .map(|(a, b)| (ls[a][0] - ls[b][0]).hypot(ls[a][1] - ls[b][1]))
+        .fold(0.0, f64::max);
+    if depth == 0 || front_gap(ls) >= gap_ratio * diam {
+        leaf(cell, out);
+        return;
+    }
+    let mid = |a: [f64; 2], b: [f64; 2]| [(a[0] + b[0]) * 0.5, (a[1] + b[1]) * 0.5];
+    for (c, l) in red_children(cell, ls, mid) {
+        near_front_rule(&c, &l, depth - 1, gap_ratio, leaf, out);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -416,5 +514,36 @@ mod tests {
             let psi = front_level_set(x.z, d, x.y < 0.0);
             assert!((psi - want).abs() < 1e-15, "{psi} vs {want}");
         }
+    }
+
+    #[test]
+    fn red_children_tile_the_tet_and_front_gap_is_the_plane_distance() {
+        let v = [
+            Point3::new(0.1, 0.0, 0.0),
+            Point3::new(1.0, 0.2, 0.0),
+            Point3::new(0.3, 0.9, 0.1),
+            Point3::new(0.2, 0.3, 1.1),
+        ];
+        let vol = crate::mesh::tet_volume(&v).abs();
+        let kids = red_children(&v, &v.map(|p| p.coords), |a, b| (a + b) * 0.5);
+        let total: f64 = kids
+            .iter()
+            .map(|(c, _)| crate::mesh::tet_volume(c).abs())
+            .sum();
+        assert!((total - vol).abs() < 1e-14 * vol, "{total} {vol}");
+        for (c, f) in &kids {
+            assert!(crate::mesh::tet_volume(c).abs() > 0.05 * vol);
+            for k in 0..4 {
+                assert!((c[k].coords - f[k]).norm() < 1e-15);
+            }
+        }
+        // Level sets φ = y − 0.5, ψ = x − 2: the front x = 2, y = 0.5 lies
+        // beside the tet; its gap is the (φ, ψ) distance of the nearest
+        // point, vertex 1 (φ, ψ) = (−0.3, −1.0).
+        let ls = v.map(|p| [p.y - 0.5, p.x - 2.0]);
+        let gap = front_gap(&ls);
+        assert!((gap - 0.3f64.hypot(1.0)).abs() < 1e-12, "{gap}");
+        let through = v.map(|p| [p.y - 0.3, p.x - 0.4]);
+        assert_eq!(front_gap(&through), 0.0);
     }
 }

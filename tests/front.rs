@@ -696,21 +696,27 @@ fn dofs_added_per_front_length_against_tip_radius() {
     }
 }
 
-/// KNOWN FAILURE (ignored, run with --ignored): with tip nodes the linear
-/// field is not reproduced (Tet4 topological, h = 1/4 jittered: field error
-/// 1.4 relative, tip DOFs 2.3e-3 from a 3.8e-7 quadrature residual). Cause:
-/// on the linear partition of unity, φF₂ − φF₃ − ψF₄ ≡ 0 makes the tip DOFs
-/// of fully enriched elements linearly dependent (only blending elements
-/// break it), so K is nearly singular there; conditioning (Béchet 2005
-/// orthonormalisation does not remove a dependence across nodes; Laborde
-/// 2005 DOF gathering would) is not done yet. Extend passes at 2e-14.
+/// The patch test with tip-enriched nodes: uniaxial stress along the front
+/// direction t (σ n = 0 on the cut faces), so the linear field is the exact
+/// solution with the cut. Extended cuts reproduce it to round-off. With tip
+/// nodes it holds to quadrature accuracy: the residual of the exact state on
+/// the tip rows, ∫∇(Nᵢ(F − F(xᵢ))) : σ, vanishes exactly (divergence theorem,
+/// σ n = 0 on the cut), but its integrand is near-singular (∇F ~ r^(-1/2)) in
+/// the cells the front passes close to. Relative to the largest force of that
+/// state, on this jittered h = 1/4 mesh (Tet4 topological): 6.3e-4 with the
+/// plain degree-5 rule in every cell not touching the front; 4.9e-5 with one
+/// red refinement of the near cells (what the model does,
+/// [`xfem_cut::front::near_front_rule`]); 3.4e-5 refining twice at a quarter;
+/// 1.2e-6 refining three times at gap < size with 6³ collapsed rules on the
+/// front cells (17× the points). The solution's error follows the residual
+/// (displacement 0.5×, energy norm 1.6× it, at every rule tried), so the test
+/// asserts both: the rule's residual, and an error no larger than a small
+/// multiple of it (a modelling error would not shrink with the rule). The
+/// strain is compared in the energy norm: a tip DOF's strain grows like
+/// r^(-1/2) at the front, so a pointwise bound would measure how close the
+/// rule's points come to it.
 #[test]
-#[ignore]
 fn patch_test_with_tip_nodes_present() {
-    // Uniaxial stress along the front direction t: σ n = 0 on the cut faces,
-    // so the linear field u = ε x (+ a rotation-free offset) is the exact
-    // solution with the cut; imposed on the boundary's standard DOFs (enriched
-    // ones 0), the solution reproduces it with zero enriched DOFs.
     let fr = Front::new();
     let patch = fr.patch();
     let lame = Lame::from(MATERIAL);
@@ -720,12 +726,34 @@ fn patch_test_with_tip_nodes_present() {
         (fr.t * fr.t.transpose() * (1.0 + nu) - Matrix3::identity() * nu) * (s / MATERIAL.young);
     let sigma = Matrix3::identity() * (lame.lambda * eps.trace()) + eps * (2.0 * lame.mu);
     assert!((sigma * fr.n).norm() < 1e-15);
-    let exact = |x: &Point3<f64>| eps * x.coords + Vector3::new(1e-3, -2e-3, 5e-4);
-    for (kind, input) in [
-        (ElementKind::Tet4, CutInput::extend(&patch, 1e-4)),
-        (ElementKind::Tet4, CutInput::tip(&patch, 1e-4, None)),
-        (ElementKind::Tet4, CutInput::tip(&patch, 1e-4, Some(0.2))),
-        (ElementKind::Tet10, CutInput::tip(&patch, 1e-4, Some(0.2))),
+    let offset = Vector3::new(1e-3, -2e-3, 5e-4);
+    let exact = |x: &Point3<f64>| eps * x.coords + offset;
+    let mut failures = Vec::new();
+    for (name, kind, input, bound) in [
+        (
+            "Tet4 extend",
+            ElementKind::Tet4,
+            CutInput::extend(&patch, 1e-4),
+            1e-12,
+        ),
+        (
+            "Tet4 topological",
+            ElementKind::Tet4,
+            CutInput::tip(&patch, 1e-4, None),
+            1e-2,
+        ),
+        (
+            "Tet4 R = 0.2",
+            ElementKind::Tet4,
+            CutInput::tip(&patch, 1e-4, Some(0.2)),
+            1e-2,
+        ),
+        (
+            "Tet10 R = 0.2",
+            ElementKind::Tet10,
+            CutInput::tip(&patch, 1e-4, Some(0.2)),
+            1e-2,
+        ),
     ] {
         let mesh = mesh(4, kind, 0.2);
         let cut = setup_cut(&mesh, &[input]).unwrap();
@@ -760,8 +788,8 @@ fn patch_test_with_tip_nodes_present() {
         .unwrap();
         let mut chol = Cholesky::new(&model.pattern).unwrap();
         let sol = solve_static(&model, &mut chol, &StaticOptions::default()).unwrap();
-        // The residual of the exact state (standard DOFs linear, enriched 0):
-        // quadrature-level on the tip DOFs.
+        // The residual of the exact state (standard DOFs linear, enriched 0),
+        // relative to the largest internal force of the same state.
         let residual = {
             use xfem_cut::assembly::{evaluate, Request, Rotations, Workspace};
             let mut d = vec![0.0; model.n_dofs()];
@@ -781,29 +809,37 @@ fn patch_test_with_tip_nodes_present() {
                     exact_tangent: false,
                 },
             );
-            model
-                .equation
-                .iter()
-                .enumerate()
+            let scale = f.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            let free = model.equation.iter().enumerate();
+            let worst = free
                 .filter(|(_, &eq)| eq != xfem_cut::model::NONE)
-                .fold(0.0f64, |a, (dof, _)| a.max(f[dof].abs()))
+                .fold(0.0f64, |a, (dof, _)| a.max(f[dof].abs()));
+            worst / scale
         };
-        let mut worst: f64 = 0.0;
+        let u_scale = (eps * Vector3::new(1.0, 1.0, 1.0)).norm() + offset.norm();
+        let (mut u_err, mut e_err, mut e_ref) = (0.0f64, 0.0f64, 0.0f64);
         for e in 0..model.mesh.n_elements() {
-            for (x, _, side) in model.field_points(e) {
+            for (x, w, side) in model.field_points(e) {
                 let (u, g) = model.field_at(&sol.d, e, &x, side);
-                worst = worst
-                    .max((u - exact(&x)).norm() / 1e-2)
-                    .max((g - eps).norm() / s);
+                u_err = u_err.max((u - exact(&x)).norm() / u_scale);
+                e_err += w * (g - eps).norm_squared();
+                e_ref += w * eps.norm_squared();
             }
         }
-        let enriched: f64 = sol.d[3 * n_nodes..].iter().fold(0.0, |a, v| a.max(v.abs()));
-        println!("{kind:?}: {n_tip} tip, {n_heaviside} Heaviside nodes; residual of the exact state {residual:.1e}; worst relative field error {worst:.1e}, largest enriched DOF {enriched:.1e}");
-        assert!(
-            worst < 1e-9 && enriched < 1e-10,
-            "{kind:?}: {worst:e} {enriched:e}"
-        );
+        let e_err = (e_err / e_ref).sqrt();
+        let enriched: f64 = sol.d[3 * n_nodes..]
+            .iter()
+            .fold(0.0f64, |a, v| a.max(v.abs()))
+            / u_scale;
+        println!("{name}: {n_tip} tip, {n_heaviside} Heaviside nodes; residual of the exact state {residual:.1e}; displacement error {u_err:.1e}, energy-norm error {e_err:.1e}, largest enriched DOF {enriched:.1e} (relative)");
+        let response = 3.0 * residual.max(1e-13);
+        if !(residual <= bound && u_err <= response && e_err <= response) {
+            failures.push(format!(
+                "{name}: residual {residual:e}, errors {u_err:e} {e_err:e}"
+            ));
+        }
     }
+    assert!(failures.is_empty(), "{failures:?}");
 }
 
 #[test]
