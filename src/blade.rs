@@ -905,6 +905,241 @@ pub fn run_dynamic(
     }
 }
 
+/// A bordered solve of a grown linear system on the factor of the old one
+/// (METHODS.md, "Blades": reanalysis for growing cracks), measured against
+/// refactorisation in `benches/blade.rs`.
+///
+/// After a cut event without dropped DOFs the new matrix (equations of
+/// [`Model::update_cut`]: the old ones keep their numbers, new ones are
+/// appended) is A = A₀ + Δ with A₀ = blockdiag(A_old, D), D the diagonal
+/// of A on the new equations, and
+/// Δ = [[E, B], [Bᵀ, C − D]]: E the changes among old equations (the
+/// enriched DOFs of the changed elements), B the coupling of the new
+/// equations to the old ones, C their block. Δ = U W Uᵀ with
+/// U = [P_E, B̂, P_N] (P_E the unit columns of E's equations, B̂ = [B; 0],
+/// P_N those of the new equations) and W = [[E, 0, 0], [0, 0, I], [0, I, C − D]].
+/// With Z = A₀⁻¹U (one solve on the old factor per column of P_E and B̂,
+/// once per event) and G = UᵀZ, A x = b is x = y − Z s, y = A₀⁻¹b,
+/// (I + W G) s = W Uᵀy (Woodbury): one solve on the old factor and a dense
+/// solve of the border per right-hand side.
+pub struct BorderedSolve {
+    n_old: usize,
+    /// Old equations with changed entries among themselves (E's).
+    changed: Vec<usize>,
+    /// B̂'s columns: (old equation, value) per new equation.
+    coupling: Vec<Vec<(usize, f64)>>,
+    /// D on the new equations (index eq − n_old).
+    diagonal: Vec<f64>,
+    /// Z = A₀⁻¹U, n × k.
+    z: nalgebra::DMatrix<f64>,
+    w: nalgebra::DMatrix<f64>,
+    /// LU of I + W G (none for an empty border).
+    lu: Option<nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>>,
+    /// Scratch of the old equations.
+    old: Vec<f64>,
+}
+
+impl BorderedSolve {
+    /// The bordered solve of the matrix `new_values` (lower CSC on `new`)
+    /// on `chol`, factorised with `old_values` on `old`; `None` where the
+    /// new system dropped or renumbered old equations (refactorise then).
+    /// Changes among old equations with |A − A_old| ≤ `tol` × (the
+    /// geometric mean of their diagonals) are left out of E (0: none; 1e-13
+    /// leaves out the round-off changes of the standard blocks of newly cut
+    /// Tet4, whose side volumes sum to the element's only to round-off: the
+    /// solve is then that of a matrix within `tol` of A).
+    pub fn new(
+        chol: &mut Cholesky,
+        old: &crate::solve::Pattern,
+        old_values: &[f64],
+        new: &crate::solve::Pattern,
+        new_values: &[f64],
+        tol: f64,
+    ) -> Option<BorderedSolve> {
+        let (n_old, n) = (old.n, new.n);
+        if n < n_old {
+            return None;
+        }
+        let k_new = n - n_old;
+        let old_value = |r: usize, c: usize| old.position(r, c).map_or(0.0, |p| old_values[p]);
+        let diagonal_of: Vec<f64> = (0..n)
+            .map(|c| new.position(c, c).map_or(0.0, |p| new_values[p]))
+            .collect();
+        let diagonal = diagonal_of[n_old..].to_vec();
+        if diagonal.iter().any(|&d| d <= 0.0) {
+            return None;
+        }
+        let (mut e, mut c_minus_d) = (Vec::new(), Vec::new());
+        let mut coupling = vec![Vec::new(); k_new];
+        for c in 0..n {
+            for p in new.col_ptr[c]..new.col_ptr[c + 1] {
+                let (r, v) = (new.row_idx[p], new_values[p]);
+                match (r < n_old, c < n_old) {
+                    (true, true) => {
+                        let d = v - old_value(r, c);
+                        let scale = (diagonal_of[r] * diagonal_of[c]).abs().sqrt();
+                        if d != 0.0 && d.abs() > tol * scale {
+                            e.push((r, c, d));
+                        }
+                    }
+                    (false, true) => coupling[r - n_old].push((c, v)),
+                    (false, false) => {
+                        let d = if r == c { 0.0 } else { v };
+                        if d != 0.0 {
+                            c_minus_d.push((r - n_old, c - n_old, d));
+                        }
+                    }
+                    (true, false) => unreachable!("lower triangle"),
+                }
+            }
+        }
+        // Old entries gone from the new pattern.
+        for c in 0..n_old {
+            for p in old.col_ptr[c]..old.col_ptr[c + 1] {
+                let r = old.row_idx[p];
+                if new.position(r, c).is_none() && old_values[p] != 0.0 {
+                    e.push((r, c, -old_values[p]));
+                }
+            }
+        }
+        let mut changed: Vec<usize> = e.iter().flat_map(|&(r, c, _)| [r, c]).collect();
+        changed.sort_unstable();
+        changed.dedup();
+        let s = changed.len();
+        let k = s + 2 * k_new;
+        let slot = |eq: usize| changed.binary_search(&eq).expect("changed");
+        let mut w = nalgebra::DMatrix::<f64>::zeros(k, k);
+        for &(r, c, d) in &e {
+            let (i, j) = (slot(r), slot(c));
+            w[(i, j)] += d;
+            if i != j {
+                w[(j, i)] += d;
+            }
+        }
+        for j in 0..k_new {
+            w[(s + j, s + k_new + j)] = 1.0;
+            w[(s + k_new + j, s + j)] = 1.0;
+        }
+        for &(r, c, d) in &c_minus_d {
+            let (i, j) = (s + k_new + r, s + k_new + c);
+            w[(i, j)] += d;
+            if i != j {
+                w[(j, i)] += d;
+            }
+        }
+        let mut z = nalgebra::DMatrix::<f64>::zeros(n, k);
+        let mut col = vec![0.0; n_old];
+        for j in 0..s + k_new {
+            col.fill(0.0);
+            if j < s {
+                col[changed[j]] = 1.0;
+            } else {
+                for &(r, v) in &coupling[j - s] {
+                    col[r] = v;
+                }
+            }
+            chol.solve_in_place(&mut col);
+            z.view_mut((0, j), (n_old, 1)).copy_from_slice(&col);
+        }
+        for j in 0..k_new {
+            z[(n_old + j, s + k_new + j)] = 1.0 / diagonal[j];
+        }
+        let mut solver = BorderedSolve {
+            n_old,
+            changed,
+            coupling,
+            diagonal,
+            z,
+            w,
+            lu: None,
+            old: vec![0.0; n_old],
+        };
+        if k > 0 {
+            let mut g = nalgebra::DMatrix::<f64>::zeros(k, k);
+            for j in 0..k {
+                let t = solver.border_of(solver.z.column(j).as_slice());
+                g.set_column(j, &t);
+            }
+            solver.lu = Some((nalgebra::DMatrix::<f64>::identity(k, k) + &solver.w * g).lu());
+        }
+        Some(solver)
+    }
+
+    /// Uᵀ x.
+    fn border_of(&self, x: &[f64]) -> nalgebra::DVector<f64> {
+        let (s, k_new) = (self.changed.len(), self.coupling.len());
+        nalgebra::DVector::from_fn(s + 2 * k_new, |i, _| {
+            if i < s {
+                x[self.changed[i]]
+            } else if i < s + k_new {
+                self.coupling[i - s].iter().map(|&(r, v)| v * x[r]).sum()
+            } else {
+                x[self.n_old + i - s - k_new]
+            }
+        })
+    }
+
+    /// Size of the border (columns of U: changed old, coupling and new equations).
+    pub fn border(&self) -> usize {
+        self.w.nrows()
+    }
+
+    /// Solves on the old factor per event: changed old equations + new ones.
+    pub fn event_solves(&self) -> usize {
+        self.changed.len() + self.coupling.len()
+    }
+
+    /// Solves A x = b in place (b ← x) on the old factor `chol`.
+    pub fn solve_in_place(&mut self, chol: &mut Cholesky, b: &mut [f64]) {
+        let n_old = self.n_old;
+        self.old.copy_from_slice(&b[..n_old]);
+        chol.solve_in_place(&mut self.old);
+        b[..n_old].copy_from_slice(&self.old);
+        for (x, d) in b[n_old..].iter_mut().zip(&self.diagonal) {
+            *x /= d;
+        }
+        let Some(lu) = &self.lu else {
+            return;
+        };
+        let t = self.border_of(b);
+        let s = lu
+            .solve(&(&self.w * t))
+            .unwrap_or_else(|| nalgebra::DVector::zeros(self.w.nrows()));
+        let zs = &self.z * s;
+        for (x, v) in b.iter_mut().zip(zs.iter()) {
+            *x -= v;
+        }
+    }
+}
+
+/// K + c M on a model's pattern (linear stiffness at rest, consistent mass):
+/// the shape of K_eff a linear Newmark step factorises, for the bordered-solve
+/// test and bench.
+pub fn stiffness_plus_mass(model: &Model, c: f64) -> Vec<f64> {
+    use crate::assembly::{evaluate, Request, Workspace};
+    let mut k = vec![0.0; model.pattern.nnz()];
+    let mut f = vec![0.0; model.n_dofs()];
+    let d = vec![0.0; model.n_dofs()];
+    evaluate(
+        model,
+        &d,
+        &mut Rotations::identity(model),
+        &mut Workspace::new(model),
+        Request {
+            forces: Some(&mut f),
+            tangent: Some(&mut k),
+            update_rotations: false,
+            exact_tangent: false,
+        },
+    );
+    if let Some(m) = &model.consistent_mass {
+        for (kv, mv) in k.iter_mut().zip(m) {
+            *kv += c * mv;
+        }
+    }
+    k
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

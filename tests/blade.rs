@@ -798,3 +798,56 @@ fn incremental_update_equals_a_full_build_at_every_event() {
         }
     }
 }
+
+#[test]
+fn a_bordered_solve_on_the_old_factor_equals_refactorisation() {
+    use xfem_cut::blade::{stiffness_plus_mass, BorderedSolve};
+    use xfem_cut::solve::Cholesky;
+    use xfem_cut::study::fixtures::{beam_mesh, seed_beam, seed_blade};
+    let mesh = beam_mesh([3, 6, 11], false);
+    let cuts = seed_blade(0.0, 1.0);
+    // c = 1/(β dt²) of a 5 ms step.
+    let c = 1.0 / (0.25 * 0.005f64.powi(2));
+    let mut model = seed_beam(mesh.clone(), Formulation::Linear, None).unwrap();
+    let mut events = 0;
+    for k in 1..=10 {
+        let s = cuts.setup_at(&mesh, 0.1 * k as f64).unwrap();
+        if xfem_cut::blade::same_setup(model.cut.as_ref(), s.as_ref()) {
+            continue;
+        }
+        let (next, stats) = model.update_cut(s).unwrap();
+        let (a_old, a_new) = (
+            stiffness_plus_mass(&model, c),
+            stiffness_plus_mass(&next, c),
+        );
+        let mut old = Cholesky::new(&model.pattern).unwrap();
+        old.factorize(&a_old).unwrap();
+        let mut direct = Cholesky::new(&next.pattern).unwrap();
+        direct.factorize(&a_new).unwrap();
+        let b: Vec<f64> = (0..next.n_free)
+            .map(|i| ((i as f64) * 0.71).cos())
+            .collect();
+        let mut y = b.clone();
+        direct.solve_in_place(&mut y);
+        // The exact border, and round-off changes (≤ 1e-13 relative) left out of it.
+        for (tol, allowed) in [(0.0, 1e-13), (1e-13, 1e-11)] {
+            let mut bordered =
+                BorderedSolve::new(&mut old, &model.pattern, &a_old, &next.pattern, &a_new, tol)
+                    .unwrap();
+            let mut x = b.clone();
+            bordered.solve_in_place(&mut old, &mut x);
+            let diff = vector_difference(&y, &x);
+            println!(
+                "event {events}: {} equations added, {} elements changed, border {} ({} solves on the old factor, tol {tol:e}), bordered vs refactorised {diff:.1e}",
+                stats.new_equations,
+                stats.changed_elements,
+                bordered.border(),
+                bordered.event_solves()
+            );
+            assert!(diff <= allowed, "{diff:e}");
+        }
+        events += 1;
+        model = next;
+    }
+    assert!(events >= 3);
+}
