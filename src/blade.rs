@@ -650,10 +650,120 @@ pub fn same_setup(a: Option<&CutSetup>, b: Option<&CutSetup>) -> bool {
 /// field: uᵢ + (H − Hᵢ)/2 aᵢ = uᵢ' + (H + Hᵢ)/2 aᵢ. With a tip front, a
 /// node's tip block is kept while it stays tip-enriched; a node the front
 /// has passed (tip → Heaviside) starts its Heaviside DOFs at zero and drops
-/// its tip DOFs: no projection yet, so the field changes there and the
-/// event's energies show by how much. Rotations start at the identity
+/// its tip DOFs; then [`project_tip_change`] fits the DOFs whose meaning
+/// changed (every tip block, the Heaviside DOFs of nodes tip-enriched
+/// before) to the old field by least squares, for d, v and a; the event's
+/// energies show what remains. Rotations start at the identity
 /// (corotational steps recompute them from d).
 pub fn map_state(old: &Model, new: &Model, state: &State) -> State {
+    let mut mapped = map_state_unprojected(old, new, state);
+    project_tip_change(old, new, state, &mut mapped);
+    mapped
+}
+
+/// Least-squares projection at a cut event where DOFs change meaning (a
+/// tip front moved: its branch functions follow it, and nodes it passed
+/// turn from tip- to Heaviside-enriched; METHODS.md, "Blades"). The fitted
+/// DOFs F are every tip block of `new` and the Heaviside DOFs of nodes
+/// tip-enriched in `old`; the others keep their mapped values. Over the
+/// elements holding an F shape function (the quadrature points of
+/// [`Model::field_points`], side by side) F minimises ∫ |u_new − u_old|²:
+/// M_FF a_F = ∫ φ_F (u_old − Σ_{b∉F} φ_b a_b), one scalar Gram matrix for
+/// the three components and for d, v and a. Nothing is done without tip
+/// nodes (shifted Heaviside DOFs starting at zero keep the field exactly),
+/// nor where the Gram matrix is not positive definite (mapped values kept).
+pub fn project_tip_change(old: &Model, new: &Model, state: &State, mapped: &mut State) {
+    let (Some(oc), Some(nc)) = (&old.cut, &new.cut) else {
+        return;
+    };
+    if oc.n_tip == 0 && nc.n_tip == 0 {
+        return;
+    }
+    let n_nodes = new.mesh.n_nodes();
+    let mut slot = vec![usize::MAX; new.n_shape];
+    let mut fitted = Vec::new();
+    for i in 0..n_nodes {
+        if let Some(t) = nc.tip.get(i).copied().flatten() {
+            for b in 0..crate::front::N_BRANCH {
+                fitted.push(n_nodes + nc.n_enriched + crate::front::N_BRANCH * t + b);
+            }
+        }
+        if let (Some(j), Some(_)) = (nc.enriched[i], oc.tip.get(i).copied().flatten()) {
+            fitted.push(n_nodes + j);
+        }
+    }
+    if fitted.is_empty() {
+        return;
+    }
+    for (k, &s) in fitted.iter().enumerate() {
+        slot[s] = k;
+    }
+    let nf = fitted.len();
+    let mut gram = nalgebra::DMatrix::<f64>::zeros(nf, nf);
+    let mut rhs = nalgebra::DMatrix::<f64>::zeros(nf, 9);
+    let olds = [&state.d, &state.v, &state.a];
+    let news = [&mapped.d, &mapped.v, &mapped.a];
+    for e in 0..new.mesh.n_elements() {
+        let ids = new.element_shapes(e);
+        if ids.iter().all(|&s| slot[s as usize] == usize::MAX) {
+            continue;
+        }
+        let old_ids = old.element_shapes(e);
+        for (x, w, side) in new.field_points(e) {
+            let vals = new.shape_values_at(e, &x, side);
+            let old_vals = old.shape_values_at(e, &x, side);
+            for (f, (vo, vn)) in olds.iter().zip(&news).enumerate() {
+                let mut r = Vector3::zeros();
+                for (a, &s) in old_ids.iter().enumerate() {
+                    let s = s as usize;
+                    r += Vector3::new(vo[3 * s], vo[3 * s + 1], vo[3 * s + 2]) * old_vals[a];
+                }
+                for (a, &s) in ids.iter().enumerate() {
+                    if slot[s as usize] == usize::MAX {
+                        let s = s as usize;
+                        r -= Vector3::new(vn[3 * s], vn[3 * s + 1], vn[3 * s + 2]) * vals[a];
+                    }
+                }
+                for (a, &s) in ids.iter().enumerate() {
+                    let sa = slot[s as usize];
+                    if sa != usize::MAX {
+                        for c in 0..3 {
+                            rhs[(sa, 3 * f + c)] += w * vals[a] * r[c];
+                        }
+                    }
+                }
+            }
+            for (a, &s) in ids.iter().enumerate() {
+                let sa = slot[s as usize];
+                if sa == usize::MAX {
+                    continue;
+                }
+                for (b, &t) in ids.iter().enumerate() {
+                    let sb = slot[t as usize];
+                    if sb != usize::MAX {
+                        gram[(sa, sb)] += w * vals[a] * vals[b];
+                    }
+                }
+            }
+        }
+    }
+    let Some(chol) = gram.cholesky() else {
+        return;
+    };
+    let x = chol.solve(&rhs);
+    let targets = [&mut mapped.d, &mut mapped.v, &mut mapped.a];
+    for (f, y) in targets.into_iter().enumerate() {
+        for (k, &s) in fitted.iter().enumerate() {
+            for c in 0..3 {
+                y[3 * s + c] = x[(k, 3 * f + c)];
+            }
+        }
+    }
+}
+
+/// [`map_state`] without the projection: DOFs that change meaning keep
+/// their values (tip blocks) or start at zero (tip → Heaviside).
+pub fn map_state_unprojected(old: &Model, new: &Model, state: &State) -> State {
     let n_nodes = new.mesh.n_nodes();
     let n = new.n_dofs();
     let map = |x: &[f64]| -> Vec<f64> {
@@ -744,12 +854,35 @@ pub struct Sweep {
     pub series: Vec<(f64, f64, bool)>,
 }
 
+impl Event {
+    /// |ΔE| / E of kinetic + strain energy across the event (0 where both are 0).
+    pub fn energy_jump(&self) -> f64 {
+        let total = |x: &Energies| x.kinetic + x.strain;
+        let before = total(&self.before);
+        if before == 0.0 {
+            return (total(&self.after) - before).abs();
+        }
+        (total(&self.after) - before).abs() / before
+    }
+}
+
+impl Sweep {
+    /// The largest [`Event::energy_jump`] of the sweep (tip → Heaviside
+    /// changes are not projected: with a tip front this is where the field changes).
+    pub fn largest_energy_jump(&self) -> f64 {
+        self.events
+            .iter()
+            .map(Event::energy_jump)
+            .fold(0.0, f64::max)
+    }
+}
+
 impl std::fmt::Display for Sweep {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let patterns = self.events.iter().filter(|e| e.pattern_changed).count();
         write!(
             f,
-            "sweep {:.4} → {:.4} s: {} cut events ({} changed the pattern, {} set-ups checked), DOFs {} → {}, {} symbolic / {} numeric factorisations, {:.3} s in events, {:.3} s checking, {:.3} s in steps",
+            "sweep {:.4} → {:.4} s: {} cut events ({} changed the pattern, {} set-ups checked), DOFs {} → {}, {} symbolic / {} numeric factorisations, {:.3} s in events, {:.3} s checking, {:.3} s in steps, largest energy change at an event {:.1e}",
             self.start,
             self.end,
             self.events.len(),
@@ -761,7 +894,8 @@ impl std::fmt::Display for Sweep {
             self.factorisations,
             self.event_seconds,
             self.check_seconds,
-            self.step_seconds
+            self.step_seconds,
+            self.largest_energy_jump()
         )
     }
 }

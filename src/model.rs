@@ -346,6 +346,25 @@ impl Model {
         }
     }
 
+    /// Values of element `e`'s shape functions ([`Model::element_shapes`]
+    /// order) at reference point `x`, on side `side` of the cut.
+    pub fn shape_values_at(&self, e: usize, x: &Point3<f64>, side: i8) -> Vec<f64> {
+        let verts = self.mesh.vertex_points(e);
+        let bary = crate::mesh::barycentric(&verts, x).unwrap_or([0.25; 4]);
+        let m = self.elements[e].shapes.len();
+        let mut vals = vec![0.0; m];
+        match &self.cut {
+            Some(c) => {
+                let dl = barycentric_gradients(&verts).unwrap_or([Vector3::zeros(); 4]);
+                let mut grads = vec![Vector3::zeros(); m];
+                let shapes = ElementShapes::any(&self.mesh, c, e, &dl, self.heaviside_local(e));
+                shapes.eval(&bary, self.element_side(e, side), &mut vals, &mut grads);
+            }
+            None => shape_values(self.mesh.kind, &bary, &mut vals),
+        }
+        vals
+    }
+
     /// Displacement u_h and its gradient ∇u_h at reference point `x` of
     /// element `e`, on side `side` of the cut (every shape function, tip ones included).
     pub fn field_at(
