@@ -1785,44 +1785,68 @@ impl Model {
         let n_free = n_free as usize;
         stats.new_equations = n_free + stats.dropped_equations - self.n_free;
 
-        // Pattern: the old entries that stay, and the changed elements' entries.
+        // Pattern: the old entries that stay merged, column by column, with
+        // the changed elements' entries; eq_map keeps the old order, so the
+        // old rows stay sorted and each old entry's new position is known.
         let old = &self.pattern;
-        let mut cols: Vec<Vec<usize>> = vec![Vec::new(); n_free];
-        for c in 0..old.n {
-            let cn = eq_map[c];
-            if cn == NONE {
-                continue;
-            }
-            let col = &mut cols[cn as usize];
-            col.extend(
-                old.row_idx[old.col_ptr[c]..old.col_ptr[c + 1]]
-                    .iter()
-                    .filter_map(|&r| (eq_map[r] != NONE).then_some(eq_map[r] as usize)),
-            );
-        }
+        let mut extra: Vec<(u32, u32)> = Vec::new();
         for (e, _) in &changed {
             let el = &flat.elements[*e];
             let dofs = element_equations(&flat.shape_ids[el.shapes.clone()], &equation);
-            push_entries(&dofs, &mut cols);
-        }
-        let pattern = Pattern::from_entries(n_free, cols);
-        // Old CSC position → new.
-        let mut position = vec![NONE; old.nnz()];
-        for c in 0..old.n {
-            let cn = eq_map[c];
-            if cn == NONE {
-                continue;
-            }
-            for p in old.col_ptr[c]..old.col_ptr[c + 1] {
-                let rn = eq_map[old.row_idx[p]];
-                if rn != NONE {
-                    position[p] = pattern
-                        .position(rn as usize, cn as usize)
-                        .expect("the new pattern holds the old entries")
-                        as u32;
+            for &r in &dofs {
+                for &c in &dofs {
+                    if r != NONE && c != NONE && r >= c {
+                        extra.push((c, r));
+                    }
                 }
             }
         }
+        extra.sort_unstable();
+        extra.dedup();
+        let mut old_column = vec![NONE; n_free];
+        for (c, &cn) in eq_map.iter().enumerate() {
+            if cn != NONE {
+                old_column[cn as usize] = c as u32;
+            }
+        }
+        let mut position = vec![NONE; old.nnz()];
+        let mut col_ptr = Vec::with_capacity(n_free + 1);
+        let mut row_idx = Vec::with_capacity(old.nnz() + extra.len());
+        col_ptr.push(0);
+        let mut next = 0;
+        for cn in 0..n_free {
+            let start = next;
+            while next < extra.len() && extra[next].0 as usize == cn {
+                next += 1;
+            }
+            let mut added = extra[start..next]
+                .iter()
+                .map(|&(_, r)| r as usize)
+                .peekable();
+            if old_column[cn] != NONE {
+                let c = old_column[cn] as usize;
+                for p in old.col_ptr[c]..old.col_ptr[c + 1] {
+                    let rn = eq_map[old.row_idx[p]];
+                    if rn == NONE {
+                        continue;
+                    }
+                    let rn = rn as usize;
+                    while let Some(r) = added.next_if(|&r| r < rn) {
+                        row_idx.push(r);
+                    }
+                    added.next_if_eq(&rn);
+                    position[p] = row_idx.len() as u32;
+                    row_idx.push(rn);
+                }
+            }
+            row_idx.extend(added);
+            col_ptr.push(row_idx.len());
+        }
+        let pattern = Pattern {
+            n: n_free,
+            col_ptr,
+            row_idx,
+        };
         let mut scatter = vec![NONE; flat.scatter_len];
         let mut next_changed = changed.iter().map(|(e, _)| *e).peekable();
         for (e, el) in flat.elements.iter().enumerate() {
