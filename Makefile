@@ -35,9 +35,12 @@ CONVERGE_CSV := reports/data/convergence.csv
 COROT_CASES := gravity stretch_face bend_face slice
 CONVERGE_COROT_CSV := reports/data/convergence_corot.csv
 STRESS_CSV := reports/data/stress.csv
+# Code verification (exact solutions, no references needed): re-run when the binary changed;
+# `converge --exact` itself skips a run whose inputs hash (binary + variants) is unchanged.
+EXACT_CSV := reports/data/exact.csv
 
 # The main job: references, the convergence study, the benches, the report.
-report: build $(if $(wildcard refs/refs.mk),refs) $(CONVERGE_CSV) $(CONVERGE_COROT_CSV) $(STRESS_CSV) bench-report $(if $(wildcard refs/refs.mk),pictures)
+report: build $(if $(wildcard refs/refs.mk),refs) $(CONVERGE_CSV) $(CONVERGE_COROT_CSV) $(EXACT_CSV) $(STRESS_CSV) bench-report $(if $(wildcard refs/refs.mk),pictures)
 	$(CARGO) run --release -- report
 
 # Re-run the study when the solver, a case or a reference changed.
@@ -47,6 +50,10 @@ $(CONVERGE_CSV): target/release/xfem-cut $(foreach c,$(REPORT_CASES),cases/$(c).
 # Every variant corotational, against our corotational Tet10 FEM on the finest pre-cut level ≤ 120k DOFs.
 $(CONVERGE_COROT_CSV): target/release/xfem-cut $(foreach c,$(COROT_CASES),cases/$(c).toml refs/out/$(c)/manifest.json)
 	$(CARGO) run --release -- converge --corotational $(foreach c,$(COROT_CASES),cases/$(c).toml) --csv $@ --max-dofs 120000
+
+# The exact-solution study (a few minutes on 2 cores), with progress per solve.
+$(EXACT_CSV): target/release/xfem-cut
+	$(CARGO) run --release -- converge --exact --csv $@
 
 # The stress suite: re-run when the solver changed.
 $(STRESS_CSV): target/release/xfem-cut

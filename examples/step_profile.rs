@@ -1,48 +1,232 @@
-#![allow(clippy::needless_range_loop)]
-//! Profiles corotational Newmark steps on the seed beam (1k tets): `perf record` target.
-mod common;
-
+//! What a corotational Newmark step costs, part by part, on the seed beam
+//! (bottom clamped, gravity across, lumped mass, exact tangent, Newton to
+//! 1e-8): 1k and 10k Tet4, 1k Tet10. Medians of repeated calls, one thread.
+//!
+//! Parts: the rotations alone (polar decompositions, warm started from the
+//! converged rotations, and from the previous step's), forces + rotations,
+//! forces + rotations + exact tangent in one pass, the exact tangent alone
+//! with the rotations held (what a Newton iteration assembles after its
+//! forces pass),
+//! R K Rᵀ with the rotations held (the damping's Rₙ K Rₙᵀ), one product
+//! R K Rᵀ v (the damping force), one pass over the element data (the memory
+//! floor, `assembly::element_data_pass`), the numeric factorisation of K_eff
+//! and one solve with it; then a whole step as the integrator takes it (from
+//! the state after 10 steps, restored before each) with its Newton
+//! iterations, and the step rebuilt from the parts; last, 20 steps from that
+//! state with each linear solver (refactorising, warped PCG, lagged factor
+//! k = 5, 20).
+//!
+//! `cargo run --release --example step_profile` (all three), or
+//! `-- 6 12 24 [tet10]` for one beam.
+use std::hint::black_box;
 use std::time::Instant;
+use xfem_cut::assembly::{
+    element_data_bytes, element_data_pass, equation_shapes, evaluate, tangent_product, Request,
+    Workspace,
+};
 use xfem_cut::dynamics::{DynamicOptions, LinearSolver, Newmark};
-use xfem_cut::solve::Cholesky;
-fn main() {
-    let div: Vec<usize> = std::env::args()
-        .skip(1)
-        .map(|a| a.parse().unwrap())
-        .collect();
-    let div = if div.len() == 3 {
-        [div[0], div[1], div[2]]
-    } else {
-        [3, 6, 10]
-    };
-    let m = common::clamped_beam(div);
-    let chol = Cholesky::new(&m.pattern).unwrap();
-    // XFEM_PCG=<max CG iterations> uses CG preconditioned by the last factorisation.
-    let linear_solver = match std::env::var("XFEM_PCG").ok().and_then(|s| s.parse().ok()) {
-        Some(max_cg) => LinearSolver::Pcg {
-            tolerance: 1e-8,
-            max_cg,
-        },
-        None => LinearSolver::Direct,
-    };
-    let opts = DynamicOptions {
-        dt: 0.01,
-        steps: 1,
-        max_iterations: 1,
-        linear_solver,
-        ..DynamicOptions::default()
-    };
-    let mut nm = Newmark::new(&m, chol, opts).unwrap();
+use xfem_cut::model::{Formulation, Model};
+use xfem_cut::solve::{Cholesky, Parallelism};
+use xfem_cut::study::fixtures::{beam_mesh, seed_beam};
+
+/// Median wall time (ms) of `f` over repeated calls (≥ 5, about 0.4 s in all).
+fn median_ms(mut f: impl FnMut()) -> f64 {
     let t = Instant::now();
-    let n = 200;
-    for _ in 0..n {
+    f();
+    let once = t.elapsed().as_secs_f64();
+    let reps = ((0.4 / once.max(1e-9)) as usize).clamp(5, 400);
+    let mut times: Vec<f64> = (0..reps)
+        .map(|_| {
+            let t = Instant::now();
+            f();
+            t.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    times.sort_by(f64::total_cmp);
+    times[reps / 2]
+}
+
+fn profile(div: [usize; 3], tet10: bool) {
+    let m: Model = seed_beam(beam_mesh(div, tet10), Formulation::Corotational, None).unwrap();
+    let kind = if tet10 { "Tet10" } else { "Tet4" };
+    println!(
+        "\n{} {kind} ({} free DOFs, {} groups): element data {:.1} MB",
+        m.mesh.n_elements(),
+        m.n_free,
+        m.groups.len(),
+        element_data_bytes(&m) as f64 / 1e6
+    );
+    let opts = DynamicOptions::default();
+    let chol = Cholesky::fill_reducing(
+        &m.pattern,
+        Some(&equation_shapes(&m)),
+        Parallelism::SEQUENTIAL,
+    )
+    .unwrap();
+    let mut nm = Newmark::new(&m, chol, opts).unwrap();
+    nm.initialise_acceleration().unwrap();
+    for _ in 0..9 {
         nm.step().unwrap();
     }
+    let previous = nm.state.rotations.clone();
+    nm.step().unwrap();
+    let saved = nm.state.clone();
+    let d = saved.d.clone();
+    let mut ws = Workspace::new(&m);
+    let mut rot = saved.rotations.clone();
+    let mut f = vec![0.0; m.n_dofs()];
+    let mut k = vec![0.0; m.pattern.nnz()];
+    let mut pass = |forces: bool, tangent: bool, update: bool, exact: bool| {
+        let (f, k) = (&mut f, &mut k);
+        black_box(evaluate(
+            &m,
+            &d,
+            &mut rot,
+            &mut ws,
+            Request {
+                forces: forces.then_some(&mut f[..]),
+                tangent: tangent.then_some(&mut k[..]),
+                update_rotations: update,
+                exact_tangent: exact,
+            },
+        ));
+    };
+    let rotations = median_ms(|| pass(false, false, true, false));
+    // The rotations from the previous step's (a step's first polar decompositions).
+    let mut rot_prev = previous.clone();
+    let mut ws_prev = Workspace::new(&m);
+    let rotations_moved = median_ms(|| {
+        rot_prev.0.copy_from_slice(&previous.0);
+        black_box(evaluate(
+            &m,
+            &d,
+            &mut rot_prev,
+            &mut ws_prev,
+            Request {
+                forces: None,
+                tangent: None,
+                update_rotations: true,
+                exact_tangent: false,
+            },
+        ));
+    });
+    let forces = median_ms(|| pass(true, false, true, false));
+    let assembly = median_ms(|| pass(true, true, true, true));
+    let held = median_ms(|| pass(false, true, false, false));
+    let tangent = median_ms(|| pass(false, true, false, true));
+    let mut y = vec![0.0; m.n_dofs()];
+    let product = median_ms(|| {
+        y.fill(0.0);
+        tangent_product(&m, &saved.v, &saved.rotations, &mut ws, &mut y)
+    });
+    let floor = median_ms(|| {
+        f.fill(0.0);
+        k.fill(0.0);
+        black_box(element_data_pass(&m, &d, &mut f, &mut k));
+    });
+    let (r, keff) = nm.newton_system(&d);
+    let mut chol = Cholesky::fill_reducing(
+        &m.pattern,
+        Some(&equation_shapes(&m)),
+        Parallelism::SEQUENTIAL,
+    )
+    .unwrap();
+    let factor = median_ms(|| chol.factorize(&keff).unwrap());
+    let mut x = r.clone();
+    let solve = median_ms(|| {
+        x.copy_from_slice(&r);
+        chol.solve_in_place(&mut x)
+    });
+    let mut iterations = 0;
+    let step = median_ms(|| {
+        nm.state.clone_from(&saved);
+        iterations = nm.step().unwrap().iterations;
+    });
     println!(
-        "{} tets: {:.3} ms/step, {} factorisations, {} CG iterations in {n} steps",
-        m.mesh.n_elements(),
-        t.elapsed().as_secs_f64() * 1e3 / n as f64,
-        nm.factorisations(),
-        nm.cg_iterations()
+        "  rotations {rotations:.3} ms (from the previous step's {rotations_moved:.3}) | forces + rotations {forces:.3} | + exact tangent {assembly:.3} | R K Rᵀ held {held:.3} | R K Rᵀ v {product:.3} | element-data pass {floor:.3} ({:.1} GB/s)",
+        element_data_bytes(&m) as f64 / (floor * 1e6)
     );
+    println!(
+        "  factorisation {factor:.3} ms (nnz(L) = {}) | solve {solve:.3}",
+        chol.factor_nnz()
+    );
+    // A step: `iterations` Newton iterations, each a forces pass (with the
+    // rotations), a tangent pass (rotations held), a factorisation and a
+    // solve, and one more forces pass that finds the residual converged.
+    let (its, passes) = (iterations as f64, (iterations + 1) as f64);
+    let assembled = passes * forces + its * tangent;
+    let parts = assembled + its * (factor + solve);
+    println!(
+        "  exact tangent alone (rotations held) {tangent:.3} ms; step {step:.3} ms with {iterations} Newton iterations; from the parts {parts:.3}: assembly {:.0} %, factorisation {:.0} %, solves {:.0} %; assembly / floor {:.1}×",
+        100.0 * assembled / parts,
+        100.0 * iterations as f64 * factor / parts,
+        100.0 * iterations as f64 * solve / parts,
+        assembly / floor
+    );
+    modes(&m, &saved);
+}
+
+/// 20 consecutive steps from `state` with each linear solver: median ms a
+/// step, Newton iterations and factorisations a step.
+fn modes(m: &Model, state: &xfem_cut::dynamics::State) {
+    let lagged = |every| LinearSolver::Lagged {
+        every,
+        refactor_after: 8,
+    };
+    for (name, linear_solver) in [
+        ("refactorising Newton", LinearSolver::Direct),
+        (
+            "warped PCG",
+            LinearSolver::WarpedPcg {
+                tolerance: 1e-10,
+                max_cg: 50,
+            },
+        ),
+        ("lagged k = 5", lagged(5)),
+        ("lagged k = 20", lagged(20)),
+    ] {
+        let chol = Cholesky::fill_reducing(
+            &m.pattern,
+            Some(&equation_shapes(m)),
+            Parallelism::SEQUENTIAL,
+        )
+        .unwrap();
+        let opts = DynamicOptions {
+            linear_solver,
+            ..DynamicOptions::default()
+        };
+        let mut nm = Newmark::new(m, chol, opts).unwrap();
+        nm.state.clone_from(state);
+        let n = 20;
+        let (mut times, mut newton, mut facts, mut cg) = (Vec::new(), 0, 0, 0);
+        for _ in 0..n {
+            let t = Instant::now();
+            let r = nm.step().unwrap();
+            times.push(t.elapsed().as_secs_f64() * 1e3);
+            newton += r.iterations;
+            facts += r.factorisations;
+            cg += r.cg_iterations;
+        }
+        times.sort_by(f64::total_cmp);
+        println!(
+            "  {name:20}: {:.3} ms a step (median of {n}), {:.2} Newton, {:.1} CG, {:.2} factorisations a step",
+            times[n / 2],
+            newton as f64 / n as f64,
+            cg as f64 / n as f64,
+            facts as f64 / n as f64
+        );
+    }
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if args.len() >= 3 {
+        let div = [0, 1, 2].map(|i| args[i].parse().expect("divisions"));
+        profile(div, args.get(3).is_some_and(|a| a == "tet10"));
+        return;
+    }
+    println!("seed beam, corotational, exact tangent, lumped mass, one thread (medians; the machine may be shared)");
+    profile([3, 6, 10], false);
+    profile([6, 12, 24], false);
+    profile([3, 6, 10], true);
 }

@@ -161,10 +161,12 @@ pub fn evaluate(
     evaluate_damped(model, d, rot, ws, req, 0.0)
 }
 
-/// [`evaluate`] with `damping` × R K Rᵀ added to the requested tangent: the
-/// Newton matrix of a step with stiffness-proportional Rayleigh damping
-/// D = β_R R K Rᵀ, whose velocity derivative brings c₁γβ_R R K Rᵀ beside the
-/// exact tangent of the forces (seed section 3.5).
+/// [`evaluate`] with `damping` × R K Rᵀ added to the requested tangent, R the
+/// rotations the pass uses: the Newton matrix of a linear step with
+/// stiffness-proportional Rayleigh damping D = β_R K, whose velocity
+/// derivative brings γβ_R/(βΔt) K beside K (seed section 3.5). (Corotational
+/// steps hold the damping's rotations over the step and add its stiffness
+/// themselves: `dynamics`.)
 pub fn evaluate_damped(
     model: &Model,
     d: &[f64],
@@ -434,4 +436,183 @@ pub fn scatter_free_add(model: &Model, free: &[f64], full: &mut [f64]) {
             full[dof] += free[eq as usize];
         }
     }
+}
+
+/// Where a field load acts: in the body (per unit volume) or on a cut face
+/// (per unit area, with the outward unit normal of the side's region).
+pub enum FieldLoadAt<'a> {
+    Volume,
+    CutFace { normal: &'a Vector3<f64> },
+}
+
+/// The load vector (all DOFs, shape-function order) of a body force and a
+/// cut-face traction given as functions of the reference position and the
+/// side of the cut (±1; 0 in an element the cut does not enrich):
+/// ∫_Ω f·φ_a dV + Σ_± ∫_Γ± t·φ_a dA with every shape function of each
+/// element, shifted Heaviside (seed eq. 58–59) and tip ones included.
+///
+/// The volume part uses [`Model::field_points`] (degree 5 on each cell,
+/// collapsed rules at a front); the cut faces are the faces of the sub-tets
+/// on the zero set of the element's interpolated φ (seed eq. 72–73), each
+/// integrated from its own sub-tet's side with a 4×4 Duffy–Gauss rule. Add
+/// the result to [`Model::load`] for a manufactured solution.
+pub fn field_load(
+    model: &Model,
+    load: impl Fn(&nalgebra::Point3<f64>, i8, FieldLoadAt<'_>) -> Vector3<f64>,
+) -> Vec<f64> {
+    use crate::cut::ElementCut;
+    use crate::element::{barycentric_gradients, shape_gradients, shape_values};
+    use crate::mesh::{barycentric, TET_FACES};
+    let mesh = &model.mesh;
+    let nn = mesh.kind.nodes();
+    let n_nodes = mesh.n_nodes();
+    let mut out = vec![0.0; 3 * model.n_shape];
+    let gauss = crate::front::gauss_legendre(4);
+    for e in 0..mesh.n_elements() {
+        let verts = mesh.vertex_points(e);
+        let Some(dl) = barycentric_gradients(&verts) else {
+            continue;
+        };
+        let ids = model.element_shapes(e);
+        let m = ids.len();
+        let (mut vals, mut grads) = (vec![0.0; m], vec![Vector3::zeros(); m]);
+        let conn = mesh.element(e);
+        let shapes = model.cut.as_ref().map(|c| {
+            let heaviside: Vec<usize> = (0..nn)
+                .filter(|&k| {
+                    c.enriched[conn[k]].is_some_and(|j| ids[nn..].contains(&((n_nodes + j) as u32)))
+                })
+                .collect();
+            crate::model::ElementShapes::any(mesh, c, e, &dl, heaviside)
+        });
+        let element_cut = model.cut.as_ref().map(|c| &c.elements[e]);
+        // The side an element's shape functions are seen from at a point of side `side`.
+        let seen = |side: i8| match element_cut {
+            Some(ElementCut::Cut { .. }) => side,
+            Some(ElementCut::Touched { side }) => *side,
+            _ => 0,
+        };
+        let mut add = |x: &nalgebra::Point3<f64>,
+                       side: i8,
+                       w: f64,
+                       f: Vector3<f64>,
+                       vals: &mut [f64],
+                       grads: &mut [Vector3<f64>]| {
+            let l = barycentric(&verts, x).unwrap_or([0.25; 4]);
+            match &shapes {
+                Some(s) => s.eval(&l, seen(side), vals, grads),
+                None => {
+                    shape_values(mesh.kind, &l, vals);
+                    shape_gradients(mesh.kind, &l, &dl, grads);
+                }
+            }
+            for (a, &v) in vals.iter().enumerate() {
+                let s = ids[a] as usize;
+                for c in 0..3 {
+                    out[3 * s + c] += w * f[c] * v;
+                }
+            }
+        };
+        for (x, w, side) in model.field_points(e) {
+            let f = load(&x, side, FieldLoadAt::Volume);
+            add(&x, side, w, f, &mut vals, &mut grads);
+        }
+        let (Some(c), Some(ElementCut::Cut { sub_tets, .. })) = (model.cut.as_ref(), element_cut)
+        else {
+            continue;
+        };
+        let phi = mesh.vertices(e).map(|i| c.phi[i]);
+        let phi_at = |x: &nalgebra::Point3<f64>| {
+            let l = barycentric(&verts, x).unwrap_or([0.25; 4]);
+            (0..4).map(|k| l[k] * phi[k]).sum::<f64>()
+        };
+        let tol = 1e-9 * mesh.element_size(e);
+        for s in sub_tets {
+            for (opposite, face) in TET_FACES.iter().enumerate() {
+                let p = face.map(|k| s.vertices[k]);
+                if p.iter().any(|x| phi_at(x).abs() > tol) {
+                    continue;
+                }
+                let cross = (p[1] - p[0]).cross(&(p[2] - p[0]));
+                let area2 = cross.norm();
+                if area2 <= 0.0 {
+                    continue;
+                }
+                // Outward: away from the sub-tet's fourth vertex.
+                let mut normal = cross / area2;
+                if normal.dot(&(s.vertices[opposite] - p[0])) > 0.0 {
+                    normal = -normal;
+                }
+                for &(u, wu) in &gauss {
+                    for &(v, wv) in &gauss {
+                        let (a, b) = (u, v * (1.0 - u));
+                        let x = p[0] + (p[1] - p[0]) * a + (p[2] - p[0]) * b;
+                        let w = wu * wv * (1.0 - u) * area2;
+                        let t = load(&x, s.side, FieldLoadAt::CutFace { normal: &normal });
+                        add(&x, s.side, w, t, &mut vals, &mut grads);
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+/// One pass over what the corotational assembly reads and writes, without its
+/// arithmetic: each element's shape ids and nodal values of `d`, each group's
+/// weight and gradients, and the element's scatter map with one add per
+/// stored entry into `k` (tangent values) and per DOF into `f` — the
+/// memory-traffic floor of [`evaluate`] (benches/step.rs, examples/step_profile.rs
+/// time it against the assembly). Returns a sum so the reads are kept.
+pub fn element_data_pass(model: &Model, d: &[f64], f: &mut [f64], k: &mut [f64]) -> f64 {
+    let mut acc = 0.0;
+    for el in &model.elements {
+        let shapes = &model.shape_ids[el.shapes.clone()];
+        let n = shapes.len();
+        let mut u = 0.0;
+        for &s in shapes {
+            let s = 3 * s as usize;
+            u += d[s] + d[s + 1] + d[s + 2];
+        }
+        for g in el.groups.clone() {
+            let group = model.groups[g];
+            let start = group.grads as usize;
+            let grads = &model.grads[start..start + n];
+            acc += group.weight * u * grads.iter().map(|v| v.x + v.y + v.z).sum::<f64>();
+        }
+        for &s in shapes {
+            let s = 3 * s as usize;
+            for c in 0..3 {
+                f[s + c] += acc;
+            }
+        }
+        for &p in &model.scatter[el.scatter..el.scatter + 9 * n * n] {
+            if p != NONE {
+                k[p as usize] += acc;
+            }
+        }
+    }
+    acc
+}
+
+/// The bytes one [`element_data_pass`] reads from the model's element
+/// arrays (shape ids, groups, gradients, scatter maps), not counting `d`,
+/// `f`, `k`.
+pub fn element_data_bytes(model: &Model) -> usize {
+    use std::mem::size_of;
+    let scatter: usize = model
+        .elements
+        .iter()
+        .map(|e| 9 * e.shapes.len().pow(2))
+        .sum();
+    let grads: usize = model
+        .elements
+        .iter()
+        .map(|e| e.groups.len() * e.shapes.len())
+        .sum();
+    model.shape_ids.len() * size_of::<u32>()
+        + model.groups.len() * size_of::<crate::model::Group>()
+        + grads * size_of::<Vector3<f64>>()
+        + scatter * size_of::<u32>()
+        + model.elements.len() * size_of::<crate::model::ElementData>()
 }

@@ -348,16 +348,17 @@ impl CutSet {
             .cuts
             .first()
             .map_or(crate::cut::DEFAULT_SNAP, |c| c.snap);
-        // Scenes give `front` per cut; a progressive run treats all fronts alike (cut[0]'s, default extend).
-        let front =
-            scene
-                .cuts
-                .first()
-                .and_then(|c| c.front)
-                .map_or(FrontMode::Extend, |f| match f {
-                    crate::scene::FrontMode::Tip => FrontMode::Tip,
-                    crate::scene::FrontMode::Extend => FrontMode::Extend,
-                });
+        // Scenes give `front` per cut; a progressive run treats all fronts
+        // alike (cut[0]'s, default as for any cut: tip).
+        let front = match scene
+            .cuts
+            .first()
+            .and_then(|c| c.front)
+            .unwrap_or(crate::setup::DEFAULT_FRONT)
+        {
+            crate::scene::FrontMode::Tip => FrontMode::Tip,
+            crate::scene::FrontMode::Extend => FrontMode::Extend,
+        };
         Ok(CutSet { items, snap, front })
     }
 

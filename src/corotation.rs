@@ -24,16 +24,18 @@ pub fn polar_rotation(f: &Matrix3<f64>, guess: &Matrix3<f64>) -> Matrix3<f64> {
         return guess * svd_rotation(&g);
     }
     // Higham's Newton iteration X ← (ζX + (ζX)^−T)/2, scaled by ζ = |det X|^(−1/3)
-    // while far from converged; it converges quadratically, so once a step
-    // changes X by less than 1e-8 one more step reaches round-off.
+    // while far from converged (a warm start, det X within 1e-2 of 1, starts
+    // unscaled). It converges quadratically, the error of the new X about
+    // half the square of the change: a change below 1e-8 leaves it at round-off.
     let mut x = g;
-    let mut scaled = true;
+    let mut scaled = (det - 1.0).abs() > 1e-2;
+    let mut det_x = det;
     for _ in 0..50 {
         let Some(inv) = x.try_inverse() else {
             return guess * svd_rotation(&g);
         };
         let zeta = if scaled {
-            1.0 / x.determinant().abs().cbrt()
+            1.0 / det_x.abs().cbrt()
         } else {
             1.0
         };
@@ -41,12 +43,12 @@ pub fn polar_rotation(f: &Matrix3<f64>, guess: &Matrix3<f64>) -> Matrix3<f64> {
         let change = (next - x).norm();
         x = next;
         if change < 1e-8 {
-            if let Some(inv) = x.try_inverse() {
-                x = (x + inv.transpose()) * 0.5;
-            }
             break;
         }
         scaled = change > 1e-3;
+        if scaled {
+            det_x = x.determinant();
+        }
     }
     guess * x
 }

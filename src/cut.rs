@@ -477,6 +477,12 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
         });
     }
 
+    // A front that runs along element faces or edges (a cut ending on a node
+    // line or a face plane) crosses no element's section: no element is a
+    // front element, the cut ends exactly there (as extended), and only
+    // `tip_radius` tip-enriches nodes around it. (Tip-enriching the nodes of
+    // the elements touching it costs ~60× per corotational step at the seed
+    // beam's L0 with today's per-point integration groups.)
     // Enriched nodes: those of cut elements, except where the plane also
     // crosses an element of the node's star outside the patch (ahead of the
     // front). ψ is 0 there, so enriching the node would open a spurious crack
@@ -934,6 +940,39 @@ mod tests {
         let m = box_mesh(Point3::origin(), Point3::new(0.03, 0.06, 0.2), [3, 4, 13]);
         let c = setup_cut(&m, &[CutInput::extend(&s, DEFAULT_SNAP)]).unwrap();
         assert!(c.n_partial() > 0);
+    }
+
+    #[test]
+    fn a_front_on_mesh_faces_is_found_and_outer_edges_are_not_front() {
+        let s = patch([0.0, 0.0, 0.1], [0.015, 0.0, 0.0], [0.0, 0.06, 0.0]);
+        // z = 0.1 on a node layer and x = 0.015 a node plane: the front runs
+        // along nodes and edges; at 13 divisions in z it runs across faces.
+        for nz in [14, 13] {
+            let m = box_mesh(Point3::origin(), Point3::new(0.03, 0.06, 0.2), [2, 4, nz]);
+            let (hx, hz) = (0.015, 0.2 / nz as f64);
+            // Topological: no element has the front inside it.
+            let c = setup_cut(&m, &[CutInput::tip(&s, DEFAULT_SNAP, None)]).unwrap();
+            assert_eq!((c.n_tip(), c.n_partial()), (0, 0), "nz = {nz}");
+            // Geometric: the nodes within one element of the front line.
+            let c = setup_cut(&m, &[CutInput::tip(&s, DEFAULT_SNAP, Some(hz.min(hx)))]).unwrap();
+            assert!(c.n_tip() > 0, "nz = {nz}: no tip nodes");
+            for i in 0..m.n_nodes() {
+                let p = m.nodes[i];
+                if c.tip[i].is_some() {
+                    // Only vertices of elements touching the line x = 0.015, z = 0.1.
+                    assert!(
+                        (p.x - 0.015).abs() <= hx + 1e-12 && (p.z - 0.1).abs() <= hz + 1e-12,
+                        "nz = {nz}: tip node at {p:?}"
+                    );
+                    assert!(c.enriched[i].is_none());
+                }
+            }
+            // The patch's edges on the outer faces (x = 0, y = 0, y = 0.06)
+            // are not front: the only front is the line x = 0.015.
+            let segs = crate::front::front_segments(&m, &s.boundary());
+            assert_eq!(segs.len(), 1, "nz = {nz}: {segs:?}");
+            assert!(segs[0].iter().all(|p| (p.x - 0.015).abs() < 1e-12));
+        }
     }
 
     #[test]

@@ -1,13 +1,20 @@
 //! Implicit Newmark time stepping (seed section 3.5/5.1) with Rayleigh damping
-//! D = α M + β K and lumped (eq. 81–82) or consistent mass.
+//! and lumped (eq. 81–82) or consistent mass.
 //!
 //! Displacement form: a(d) = c₀(d − dₙ) − c₁vₙ − c₂aₙ, v(d) = vₙ + Δt((1−γ)aₙ + γa(d)),
-//! residual r(d) = f_ext − f_int(d) − M a(d) − D v(d), Newton matrix
-//! K_eff = (1 + β_R γ/(βΔt)) K_t + (1/(βΔt²) + α γ/(βΔt)) M.
-//! Linear scenes factorise K_eff once; corotational scenes re-assemble K_t
-//! each iteration (the exact tangent of the corotational forces by default)
-//! and reuse the symbolic factorisation. After the first step a step
-//! allocates nothing (`tests/alloc.rs` counts).
+//! residual r(d) = f_ext − f_int(d) − M a(d) − Dₙ v(d) with the damping
+//! matrix of the step Dₙ = α M + β_R Rₙ K Rₙᵀ: K the rest stiffness, Rₙ the
+//! element rotations at the start of the step, held over the step (linear:
+//! Rₙ = I, D = α M + β_R K). Newton matrix, the exact derivative −dr/dd:
+//! K_eff = K_t(d) + (c₀ + α γ/(βΔt)) M + β_R γ/(βΔt) Rₙ K Rₙᵀ, symmetric.
+//! Holding the rotations over the step is what makes the damping's tangent
+//! exact and symmetric (with R = R(d) it would gain d(R K Rᵀ v)/dd, which is
+//! unsymmetric); Dₙ is positive semi-definite and annihilates every rigid
+//! velocity (Rₙᵀ of a rigid field is rigid), so it dissipates and never damps
+//! a rigid motion. Linear scenes factorise K_eff once; corotational scenes
+//! re-assemble K_t each iteration (the exact tangent of the corotational
+//! forces by default) and reuse the symbolic factorisation. After the first
+//! step a step allocates nothing (`tests/alloc.rs` counts).
 
 use crate::assembly::{
     evaluate, evaluate_damped, gather_free, tangent_product, Request, Rotations, Workspace,
@@ -33,6 +40,13 @@ pub enum LinearSolver {
     /// rotation of the rest state leaves the preconditioner exact for the
     /// lumped mass (R M Rᵀ = M). Refactorise only when CG needs more than `max_cg`.
     WarpedPcg { tolerance: f64, max_cg: usize },
+    /// Modified Newton on a lagged factorisation: K_eff is factorised at the
+    /// first iterate of every `every`-th step and kept for the steps between
+    /// (`every` = 1: once a step), and refactorised at the current iterate
+    /// when Newton has done `refactor_after` iterations on one factor within
+    /// a step. An iteration without refactorisation assembles no tangent:
+    /// forces, residual and two triangular solves.
+    Lagged { every: usize, refactor_after: usize },
 }
 
 /// Mass matrix used in the time integration.
@@ -48,7 +62,9 @@ pub struct DynamicOptions {
     pub steps: usize,
     pub beta: f64,
     pub gamma: f64,
+    /// α of the damping Dₙ = α M + β_R Rₙ K Rₙᵀ (see the module comment).
     pub rayleigh_mass: f64,
+    /// β_R of the damping Dₙ = α M + β_R Rₙ K Rₙᵀ (Rₙ: the rotations at the step's start).
     pub rayleigh_stiffness: f64,
     /// Time over which prescribed displacements ramp up (0: at once).
     pub ramp: f64,
@@ -436,6 +452,16 @@ pub struct Newmark<'m> {
     v_new: Vec<f64>,
     /// Rotations scratch for [`Newmark::energies`].
     rot_scratch: Rotations,
+    /// The rotations Rₙ at the start of the step (the damping's).
+    rot_start: Rotations,
+    /// β_R's stiffness Rₙ K Rₙᵀ of the step (lower CSC values; empty
+    /// unless corotational with stiffness damping), assembled when a step
+    /// first needs its Newton matrix.
+    damping_k: Vec<f64>,
+    /// Whether `damping_k` is that of the current step's Rₙ.
+    damping_current: bool,
+    /// Steps begun since the last factorisation (the lagged factor's age).
+    steps_since_factor: usize,
     /// ‖f_ext‖ (a residual scale).
     load_norm: f64,
     /// Whether a factorisation of K_eff exists (current for linear scenes, maybe stale for PCG).
@@ -485,6 +511,16 @@ impl<'m> Newmark<'m> {
             a_new: vec![0.0; n],
             v_new: vec![0.0; n],
             rot_scratch: Rotations::identity(model),
+            rot_start: Rotations::identity(model),
+            damping_k: if model.formulation == Formulation::Corotational
+                && opts.rayleigh_stiffness != 0.0
+            {
+                vec![0.0; model.pattern.nnz()]
+            } else {
+                Vec::new()
+            },
+            damping_current: false,
+            steps_since_factor: 0,
             load_norm: norm(&model.load),
             factored: false,
             pcg: Pcg::new(model.n_free),
@@ -640,70 +676,28 @@ impl<'m> Newmark<'m> {
     fn step_inner(&mut self) -> Result<StepReport, DynamicError> {
         let model = self.model;
         let o = self.opts;
-        let dt = o.dt;
-        let c0 = 1.0 / (o.beta * dt * dt);
-        let t_new = self.state.time + dt;
+        let t_new = self.state.time + o.dt;
         let linear = model.formulation == Formulation::Linear;
         let exact = o.exact_tangent && !linear;
-        let ramp = self.ramp(t_new);
-        let step_no = (t_new / dt).round() as usize;
+        let step_no = (t_new / o.dt).round() as usize;
         let (factor_start, cg_start) = (self.chol.factorisations, self.pcg.iterations);
-
-        // Predictor: d stays, prescribed DOFs take their new values.
-        self.d_old.copy_from_slice(&self.state.d);
-        let mut d = std::mem::take(&mut self.state.d);
-        for p in &model.prescribed {
-            d[p.dof] = ramp * p.value;
-        }
-        // K_eff = K_t + (k_factor − 1) R K Rᵀ + m_factor M (D = α M + β_R R K Rᵀ).
-        let k_factor = 1.0 + o.rayleigh_stiffness * o.gamma / (o.beta * dt);
-        let m_factor = c0 + o.rayleigh_mass * o.gamma / (o.beta * dt);
+        let mut d = self.begin_step(t_new);
         let mut report = StepReport::default();
+        // Lagged factor: iterations of this step on the current factor.
+        let mut on_this_factor = 0;
         loop {
-            let need_tangent = !linear || !self.factored;
-            self.strain_energy = evaluate_damped(
-                model,
-                &d,
-                &mut self.state.rotations,
-                &mut self.ws,
-                Request {
-                    forces: Some(&mut self.f_int),
-                    tangent: need_tangent.then_some(&mut self.keff[..]),
-                    update_rotations: !linear,
-                    exact_tangent: exact,
-                },
-                k_factor - 1.0,
-            );
-            self.kinematics(&d);
-            // r = f_ext − f_int − M a − D v, D v = α M v + β K_t v.
-            self.mass.product(model, &self.a_new, &mut self.mv);
-            for i in 0..d.len() {
-                self.r_full[i] = model.load[i] - self.f_int[i] - self.mv[i];
-            }
-            // Force scale of the residual: loads, internal and inertial forces.
-            let scale = self.load_norm.max(norm(&self.f_int)).max(norm(&self.mv));
-            if o.rayleigh_mass != 0.0 {
-                self.mass.product(model, &self.v_new, &mut self.mv);
-                for i in 0..d.len() {
-                    self.r_full[i] -= o.rayleigh_mass * self.mv[i];
+            let need_tangent = match o.linear_solver {
+                LinearSolver::Lagged {
+                    every,
+                    refactor_after,
+                } if !linear => {
+                    !self.factored
+                        || (report.iterations == 0 && self.steps_since_factor >= every)
+                        || on_this_factor >= refactor_after
                 }
-            }
-            if o.rayleigh_stiffness != 0.0 {
-                self.kv.fill(0.0);
-                tangent_product(
-                    model,
-                    &self.v_new,
-                    &self.state.rotations,
-                    &mut self.ws,
-                    &mut self.kv,
-                );
-                for i in 0..d.len() {
-                    self.r_full[i] -= o.rayleigh_stiffness * self.kv[i];
-                }
-            }
-            gather_free(model, &self.r_full, &mut self.r_free);
-            let r_norm = norm(&self.r_free);
-            let residual = if r_norm == 0.0 { 0.0 } else { r_norm / scale };
+                _ => !linear || !self.factored,
+            };
+            let residual = self.residual(&d);
             report.residual = residual;
             if !residual.is_finite() {
                 return Err(DynamicError::NotFinite(step_no));
@@ -723,7 +717,7 @@ impl<'m> Newmark<'m> {
                 break;
             }
             if need_tangent {
-                self.mass.add_to(model, m_factor, &mut self.keff);
+                self.assemble_tangent(&d, exact);
             }
             if let Some(w) = self.warp.as_mut() {
                 w.update(model, &self.state.rotations);
@@ -768,14 +762,16 @@ impl<'m> Newmark<'m> {
                         Err(SolveError::NotPositiveDefinite) if exact => {
                             // Away from a stable state (compression, buckling)
                             // the exact tangent can be indefinite: this
-                            // iteration takes k_factor R K Rᵀ + m_factor M.
+                            // iteration takes R K Rᵀ in place of K_exact.
                             report.fallbacks += 1;
-                            self.assemble_corotated(&d, k_factor, m_factor);
+                            self.assemble_tangent(&d, false);
                             self.chol.factorize(&self.keff)?;
                         }
                         other => other?,
                     }
                     self.factored = true;
+                    self.steps_since_factor = 0;
+                    on_this_factor = 0;
                     if let Some(w) = self.warp.as_mut() {
                         w.at_factor.copy_from_slice(&w.now);
                         w.relative.fill(Matrix3::identity());
@@ -789,6 +785,7 @@ impl<'m> Newmark<'m> {
                 }
             }
             report.iterations += 1;
+            on_this_factor += 1;
             // Linear: the solve is exact. One iteration: the linearly implicit scheme.
             if linear || o.max_iterations == 1 {
                 break;
@@ -800,6 +797,7 @@ impl<'m> Newmark<'m> {
         std::mem::swap(&mut self.state.a, &mut self.a_new);
         self.state.d = d;
         self.state.time = t_new;
+        self.steps_since_factor += 1;
         report.factorisations = self.chol.factorisations - factor_start;
         report.cg_iterations = self.pcg.iterations - cg_start;
         if self.state.d.iter().any(|x| !x.is_finite()) {
@@ -808,8 +806,125 @@ impl<'m> Newmark<'m> {
         Ok(report)
     }
 
-    /// keff = k_factor R K Rᵀ + m_factor M at `d` with the stored rotations.
-    fn assemble_corotated(&mut self, d: &[f64], k_factor: f64, m_factor: f64) {
+    /// Starts the step to `t_new`: keeps dₙ and the rotations Rₙ and
+    /// returns the predictor (dₙ with the prescribed DOFs at their new values).
+    fn begin_step(&mut self, t_new: f64) -> Vec<f64> {
+        let model = self.model;
+        self.d_old.copy_from_slice(&self.state.d);
+        let ramp = self.ramp(t_new);
+        let mut d = std::mem::take(&mut self.state.d);
+        for p in &model.prescribed {
+            d[p.dof] = ramp * p.value;
+        }
+        self.rot_start.0.copy_from_slice(&self.state.rotations.0);
+        self.damping_current = false;
+        d
+    }
+
+    /// The step's residual at the iterate `d` (free equations, into
+    /// `r_free`), relative to its force scale, the rotations updated to `d`:
+    ///
+    /// r(d) = f_ext − f_int(d) − M a(d) − D v(d), D = α M + β_R Rₙ K Rₙᵀ,
+    ///
+    /// with the damping stiffness on the rotations Rₙ of the step's start
+    /// (constant over the step), so that −dr/dd = K_t(d) + c₀ M + γ/(βΔt) D
+    /// exactly, symmetric (K_t: the exact tangent, or R K Rᵀ):
+    /// [`Newmark::assemble_tangent`]. Forces only: the iterate that meets the
+    /// tolerance assembles no tangent.
+    fn residual(&mut self, d: &[f64]) -> f64 {
+        let model = self.model;
+        let o = self.opts;
+        let linear = model.formulation == Formulation::Linear;
+        self.strain_energy = evaluate(
+            model,
+            d,
+            &mut self.state.rotations,
+            &mut self.ws,
+            Request {
+                forces: Some(&mut self.f_int),
+                tangent: None,
+                update_rotations: !linear,
+                exact_tangent: false,
+            },
+        );
+        self.kinematics(d);
+        // r = f_ext − f_int − M a − D v.
+        self.mass.product(model, &self.a_new, &mut self.mv);
+        for i in 0..d.len() {
+            self.r_full[i] = model.load[i] - self.f_int[i] - self.mv[i];
+        }
+        // Force scale of the residual: loads, internal and inertial forces.
+        let scale = self.load_norm.max(norm(&self.f_int)).max(norm(&self.mv));
+        if o.rayleigh_mass != 0.0 {
+            self.mass.product(model, &self.v_new, &mut self.mv);
+            for i in 0..d.len() {
+                self.r_full[i] -= o.rayleigh_mass * self.mv[i];
+            }
+        }
+        if o.rayleigh_stiffness != 0.0 {
+            self.kv.fill(0.0);
+            tangent_product(
+                model,
+                &self.v_new,
+                &self.rot_start,
+                &mut self.ws,
+                &mut self.kv,
+            );
+            for i in 0..d.len() {
+                self.r_full[i] -= o.rayleigh_stiffness * self.kv[i];
+            }
+        }
+        gather_free(model, &self.r_full, &mut self.r_free);
+        let r_norm = norm(&self.r_free);
+        if r_norm == 0.0 {
+            0.0
+        } else {
+            r_norm / scale
+        }
+    }
+
+    /// keff += c₀ M + γ/(βΔt) (α M + β_R Rₙ K Rₙᵀ): the Newton matrix of
+    /// [`Newmark::residual`] (dv/dd = γ/(βΔt), da/dd = c₀).
+    fn complete_tangent(&mut self) {
+        let o = self.opts;
+        if !self.damping_k.is_empty() && !self.damping_current {
+            // Rₙ K Rₙᵀ: with the rotations held, the displacement is not used.
+            evaluate(
+                self.model,
+                &self.d_old,
+                &mut self.rot_start,
+                &mut self.ws,
+                Request {
+                    forces: None,
+                    tangent: Some(&mut self.damping_k),
+                    update_rotations: false,
+                    exact_tangent: false,
+                },
+            );
+            self.damping_current = true;
+        }
+        let c_v = o.gamma / (o.beta * o.dt);
+        let c0 = 1.0 / (o.beta * o.dt * o.dt);
+        self.mass
+            .add_to(self.model, c0 + o.rayleigh_mass * c_v, &mut self.keff);
+        let beta_v = o.rayleigh_stiffness * c_v;
+        for (k, kd) in self.keff.iter_mut().zip(&self.damping_k) {
+            *k += beta_v * kd;
+        }
+    }
+
+    /// keff = −dr/dd at `d` (after [`Newmark::residual`] at `d`, whose
+    /// rotations it uses): K_t — the exact tangent when `exact`, else R K Rᵀ
+    /// (the fallback of an indefinite exact tangent) — completed by
+    /// [`Newmark::complete_tangent`].
+    fn assemble_tangent(&mut self, d: &[f64], exact: bool) {
+        let o = self.opts;
+        // Linear: Rₙ = I, the damping stiffness is K, added in the same pass.
+        let damping_in_pass = if self.model.formulation == Formulation::Linear {
+            o.rayleigh_stiffness * o.gamma / (o.beta * o.dt)
+        } else {
+            0.0
+        };
         evaluate_damped(
             self.model,
             d,
@@ -819,11 +934,29 @@ impl<'m> Newmark<'m> {
                 forces: None,
                 tangent: Some(&mut self.keff),
                 update_rotations: false,
-                exact_tangent: false,
+                exact_tangent: exact,
             },
-            k_factor - 1.0,
+            damping_in_pass,
         );
-        self.mass.add_to(self.model, m_factor, &mut self.keff);
+        self.complete_tangent();
+    }
+
+    /// The residual r(d) of the next step (free equations, not scaled) and
+    /// its Newton matrix −dr/dd (lower CSC values on the model's pattern) at
+    /// the iterate `d`, without taking the step: what the step's Newton
+    /// iterations solve with, for checking the tangent by finite differences.
+    /// Allocates; leaves the state as it was.
+    pub fn newton_system(&mut self, d: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        let saved = (self.state.d.clone(), self.state.rotations.clone());
+        let t_new = self.state.time + self.opts.dt;
+        let predictor = self.begin_step(t_new);
+        self.state.d = predictor;
+        self.residual(d);
+        let exact = self.opts.exact_tangent && self.model.formulation != Formulation::Linear;
+        self.assemble_tangent(d, exact);
+        let out = (self.r_free.clone(), self.keff.clone());
+        (self.state.d, self.state.rotations) = saved;
+        out
     }
 }
 

@@ -66,9 +66,14 @@ pub fn branch_with_gradients(
     (values, partial.map(|(a, b)| dr * a + dtheta * b))
 }
 
+/// A triangle with its bounding box (lower, upper corner).
+type BoxedTriangle = ([Point3<f64>; 3], Point3<f64>, Point3<f64>);
+
 /// The part of the boundary segments of a cut surface that is crack front:
-/// the segments passing through the interior of some element (segments on
-/// the body's outer faces or outside it are not front).
+/// the segments running through the body — through the interior of an
+/// element, or along its faces and edges inside the body (a front on mesh
+/// faces, e.g. a cut ending on a node line); segments on the body's outer
+/// faces or outside it are not front.
 pub fn front_segments(mesh: &TetMesh, boundary: &[[Point3<f64>; 2]]) -> Vec<[Point3<f64>; 2]> {
     let boxes: Vec<(Point3<f64>, Point3<f64>)> = (0..mesh.n_elements())
         .map(|e| {
@@ -78,6 +83,22 @@ pub fn front_segments(mesh: &TetMesh, boundary: &[[Point3<f64>; 2]]) -> Vec<[Poi
             (lo, hi)
         })
         .collect();
+    // The body's outer faces (with their bounding boxes): a segment piece on
+    // them is not front.
+    let outer: Vec<BoxedTriangle> = mesh
+        .boundary_faces()
+        .into_iter()
+        .map(|(f, _)| {
+            let t = f.map(|j| mesh.nodes[j]);
+            (t, t[0].inf(&t[1]).inf(&t[2]), t[0].sup(&t[1]).sup(&t[2]))
+        })
+        .collect();
+    let on_outer = |x: &Point3<f64>, tol: f64| {
+        outer.iter().any(|(t, lo, hi)| {
+            (0..3).all(|c| x[c] >= lo[c] - tol && x[c] <= hi[c] + tol)
+                && triangle_distance(x, t) <= tol
+        })
+    };
     boundary
         .iter()
         .filter(|seg| {
@@ -87,27 +108,28 @@ pub fn front_segments(mesh: &TetMesh, boundary: &[[Point3<f64>; 2]]) -> Vec<[Poi
                 if (0..3).any(|c| shi[c] < lo[c] || slo[c] > hi[c]) {
                     return false;
                 }
-                segment_enters_interior(&mesh.vertex_points(e), seg)
+                let tol = 1e-9 * (hi - lo).norm();
+                segment_piece_midpoint(&mesh.vertex_points(e), seg)
+                    .is_some_and(|m| !on_outer(&m, tol))
             })
         })
         .copied()
         .collect()
 }
 
-/// Whether a positive length of segment `seg` lies strictly inside tet `p`
-/// (every barycentric coordinate above 1e-9).
-fn segment_enters_interior(p: &[Point3<f64>; 4], seg: &[Point3<f64>; 2]) -> bool {
-    let (Some(la), Some(lb)) = (barycentric(p, &seg[0]), barycentric(p, &seg[1])) else {
-        return false;
-    };
+/// The midpoint of the piece of segment `seg` inside the closed tet `p`
+/// (every barycentric coordinate above −1e-9), if that piece has a
+/// positive length.
+fn segment_piece_midpoint(p: &[Point3<f64>; 4], seg: &[Point3<f64>; 2]) -> Option<Point3<f64>> {
+    let (la, lb) = (barycentric(p, &seg[0])?, barycentric(p, &seg[1])?);
     let eps = 1e-9;
     let (mut t0, mut t1) = (0.0f64, 1.0f64);
     for k in 0..4 {
-        // λ_k(t) = la + t (lb − la) > eps.
-        let (a, d) = (la[k] - eps, lb[k] - la[k]);
+        // λ_k(t) = la + t (lb − la) ≥ −eps.
+        let (a, d) = (la[k] + eps, lb[k] - la[k]);
         if d.abs() < 1e-300 {
-            if a <= 0.0 {
-                return false;
+            if a < 0.0 {
+                return None;
             }
         } else if d > 0.0 {
             t0 = t0.max(-a / d);
@@ -115,7 +137,26 @@ fn segment_enters_interior(p: &[Point3<f64>; 4], seg: &[Point3<f64>; 2]) -> bool
             t1 = t1.min(-a / d);
         }
     }
-    t1 - t0 > 1e-12
+    (t1 - t0 > 1e-12).then(|| seg[0] + (seg[1] - seg[0]) * (0.5 * (t0 + t1)))
+}
+
+/// Distance from `x` to the triangle `t`.
+pub fn triangle_distance(x: &Point3<f64>, t: &[Point3<f64>; 3]) -> f64 {
+    let n = (t[1] - t[0]).cross(&(t[2] - t[0]));
+    let area2 = n.norm_squared();
+    if area2 > 0.0 {
+        // Inside the prism over the triangle: the distance to its plane.
+        let inside = (0..3).all(|k| {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            (b - a).cross(&(x - a)).dot(&n) >= 0.0
+        });
+        if inside {
+            return n.dot(&(x - t[0])).abs() / area2.sqrt();
+        }
+    }
+    (0..3)
+        .map(|k| segment_distance(x, &[t[k], t[(k + 1) % 3]]))
+        .fold(f64::INFINITY, f64::min)
 }
 
 /// Distance from `x` to the segment `seg`.

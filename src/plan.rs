@@ -21,7 +21,10 @@ pub struct Plan {
     pub elements: usize,
     pub nodes: usize,
     pub dofs: usize,
-    pub enriched: usize,
+    /// Heaviside-enriched nodes (3 DOFs each).
+    pub heaviside: usize,
+    /// Tip-enriched nodes (branch functions, 12 DOFs each).
+    pub tip: usize,
     pub free: usize,
     /// Seconds: selections, cut set-up, element data + pattern.
     pub times: [f64; 3],
@@ -115,6 +118,19 @@ impl Plan {
                 true,
                 "CG preconditioned by the last factorisation warped by the node rotations",
             ),
+            (
+                true,
+                Some(LinearSolver::Lagged {
+                    every,
+                    refactor_after,
+                }),
+            ) => add(
+                &format!(
+                    "numeric factorisation every {every} steps, or after {refactor_after} Newton iterations on one factor"
+                ),
+                true,
+                "modified Newton on a lagged factorisation",
+            ),
             (true, Some(LinearSolver::Direct)) => add(
                 "numeric factorisation every iteration",
                 true,
@@ -153,7 +169,8 @@ impl Plan {
             elements,
             nodes: model.mesh.n_nodes(),
             dofs: model.n_dofs(),
-            enriched: model.n_enriched(),
+            heaviside: model.cut.as_ref().map_or(0, |c| c.n_heaviside()),
+            tip: model.cut.as_ref().map_or(0, |c| c.n_tip()),
             free: model.n_free,
             times,
         }
@@ -179,8 +196,8 @@ impl fmt::Display for Plan {
         }
         write!(
             f,
-            "size: {} elements, {} nodes, {} DOFs ({} enriched nodes), {} free DOFs",
-            self.elements, self.nodes, self.dofs, self.enriched, self.free
+            "size: {} elements, {} nodes, {} DOFs ({} Heaviside-, {} tip-enriched nodes), {} free DOFs",
+            self.elements, self.nodes, self.dofs, self.heaviside, self.tip, self.free
         )
     }
 }

@@ -211,5 +211,6 @@ impl crate::scene::CutSpec {
     }
 }
 
-/// `front` when a cut does not say (DESIGN.md: "tip").
-pub const DEFAULT_FRONT: FrontMode = FrontMode::Extend;
+/// `front` when a cut does not say (DESIGN.md): branch functions at the
+/// front, which ends the cut where the surface ends.
+pub const DEFAULT_FRONT: FrontMode = FrontMode::Tip;

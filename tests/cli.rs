@@ -281,6 +281,11 @@ fn the_plan_shows_the_options_the_run_uses() {
             "every iteration",
         ),
         (
+            dynamic("linear_solver = \"lagged\""),
+            "[run ] numeric factorisation every 5 steps, or after 8 Newton iterations on one factor",
+            "every iteration",
+        ),
+        (
             dynamic(""),
             "[run ] numeric factorisation every iteration",
             "PCG",

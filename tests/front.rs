@@ -5,93 +5,31 @@
 
 use nalgebra::{Matrix3, Point3, Vector3};
 use xfem_cut::cut::{setup_cut, CutInput, CutSetup, FrontMode, PlanarPatch};
-use xfem_cut::front::{branch_with_gradients, N_BRANCH};
-use xfem_cut::material::{Lame, Material};
-use xfem_cut::mesh::{box_mesh, ElementKind, TetMesh};
+use xfem_cut::front::N_BRANCH;
+use xfem_cut::material::Lame;
+use xfem_cut::mesh::{ElementKind, TetMesh};
 use xfem_cut::model::{Formulation, Model, ModelInput};
 use xfem_cut::solve::Cholesky;
 use xfem_cut::statics::{solve_static, StaticOptions};
 
-const MATERIAL: Material = Material {
-    young: 1.0,
-    poisson: 0.3,
-    density: 1.0,
-};
-
-/// The front: a straight line through `c` along `t`, in the plane with normal
-/// `n`; the cut lies behind it (−m side, m = n × t).
-struct Front {
-    c: Point3<f64>,
-    n: Vector3<f64>,
-    t: Vector3<f64>,
-    m: Vector3<f64>,
-    /// Williams coefficients b_k of F_k (global frame).
-    b: [Vector3<f64>; N_BRANCH],
-}
-
-impl Front {
-    fn new() -> Front {
-        let c = Point3::new(0.513, 0.479, 0.507);
-        let n = Vector3::new(0.15, 1.0, 0.2).normalize();
-        let t0 = Vector3::new(0.1, 0.05, 1.0);
-        let t = (t0 - n * n.dot(&t0)).normalize();
-        let m = n.cross(&t);
-        let lame = Lame::from(MATERIAL);
-        let mu = lame.mu;
-        let kappa = 3.0 - 4.0 * MATERIAL.poisson;
-        let s = (2.0 * std::f64::consts::PI).sqrt();
-        let (k1, k2, k3) = (1.0, 0.7, 0.5);
-        let (c1, c2, c3) = (k1 / (2.0 * mu) / s, k2 / (2.0 * mu) / s, 2.0 * k3 / mu / s);
-        // Local frame (x = m ahead, y = n normal, z = t along the front):
-        // mode I  u_x = c1((κ−1)F2 + F3), u_y = c1((κ+1)F1 − F4);
-        // mode II u_x = c2((κ+1)F1 + F4), u_y = c2(−(κ−1)F2 + F3); mode III u_z = c3 F1.
-        let local = [
-            Vector3::new(c2 * (kappa + 1.0), c1 * (kappa + 1.0), c3),
-            Vector3::new(c1 * (kappa - 1.0), -c2 * (kappa - 1.0), 0.0),
-            Vector3::new(c1, c2, 0.0),
-            Vector3::new(c2, -c1, 0.0),
-        ];
-        let r = Matrix3::from_columns(&[m, n, t]);
-        Front {
-            c,
-            n,
-            t,
-            m,
-            b: local.map(|v| r * v),
-        }
-    }
-
-    fn patch(&self) -> PlanarPatch {
-        let l = 3.0;
-        PlanarPatch {
-            origin: self.c - self.t * l - self.m * l,
-            u: self.t * (2.0 * l),
-            v: self.m * l,
-        }
-    }
-
-    fn level_sets(&self, x: &Point3<f64>) -> (f64, f64) {
-        (self.n.dot(&(x - self.c)), self.m.dot(&(x - self.c)))
-    }
-
-    /// Exact displacement and gradient at x seen from `side` (0: from φ's sign).
-    fn exact(&self, x: &Point3<f64>, side: i8) -> (Vector3<f64>, Matrix3<f64>) {
-        let (f, g) = self.level_sets(x);
-        let (v, gr) = branch_with_gradients(f, g, &self.n, &self.m, side);
-        let mut u = Vector3::zeros();
-        let mut gu = Matrix3::zeros();
-        for k in 0..N_BRANCH {
-            u += self.b[k] * v[k];
-            gu += self.b[k] * gr[k].transpose();
-        }
-        (u, gu)
-    }
-}
+use xfem_cut::study::exact::{mid_edges, unit_box as mesh, WilliamsFront as Front, MATERIAL};
 
 fn stress(gu: &Matrix3<f64>) -> Matrix3<f64> {
-    let lame = Lame::from(MATERIAL);
-    let eps = (gu + gu.transpose()) * 0.5;
-    Matrix3::identity() * (lame.lambda * eps.trace()) + eps * (2.0 * lame.mu)
+    xfem_cut::study::exact::stress(gu, &Lame::from(MATERIAL))
+}
+
+fn standard_value(
+    fr: &Front,
+    mesh: &TetMesh,
+    cut: &CutSetup,
+    edges: &[Option<(usize, usize)>],
+    i: usize,
+) -> Vector3<f64> {
+    fr.standard_value(mesh, cut, edges, i)
+}
+
+fn boundary_values(fr: &Front, mesh: &TetMesh, cut: &CutSetup) -> Vec<(usize, [Option<f64>; 3])> {
+    fr.boundary_values(mesh, cut)
 }
 
 #[test]
@@ -134,100 +72,6 @@ fn the_williams_field_is_in_equilibrium_with_free_cut_faces() {
         let ahead = stress(&fr.exact(&(fr.c + fr.m * a), 0).1) * fr.n;
         assert!(ahead.norm() > 1e-2);
     }
-}
-
-/// A structured box mesh of [0,1]³, interior nodes jittered by up to `jitter` h.
-fn mesh(div: usize, kind: ElementKind, jitter: f64) -> TetMesh {
-    let mut m = box_mesh(Point3::origin(), Point3::new(1.0, 1.0, 1.0), [div; 3]);
-    let h = 1.0 / div as f64;
-    let mut seed: u64 = 0x2545_f491_4f6c_dd1d;
-    let mut rnd = || {
-        seed ^= seed << 13;
-        seed ^= seed >> 7;
-        seed ^= seed << 17;
-        (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-    };
-    for p in m.nodes.iter_mut() {
-        let inner = (0..3).all(|c| p[c] > 1e-12 && p[c] < 1.0 - 1e-12);
-        let d = Vector3::new(rnd(), rnd(), rnd()) * (jitter * h);
-        if inner {
-            *p += d;
-        }
-    }
-    match kind {
-        ElementKind::Tet4 => m,
-        ElementKind::Tet10 => m.to_tet10(),
-    }
-}
-
-/// The standard DOF value at node `i` that makes u_h(x_i) = u(x_i): the
-/// exact value, less, at a Tet10 mid-node, what the tip functions of its
-/// edge's tip-enriched vertices add there: ½ Σ_v (F(x_i) − F(x_v)) b.
-fn standard_value(
-    fr: &Front,
-    mesh: &TetMesh,
-    cut: &CutSetup,
-    edges: &[Option<(usize, usize)>],
-    i: usize,
-) -> Vector3<f64> {
-    let x = mesh.nodes[i];
-    let side = cut.node_side[i];
-    let mut u = fr.exact(&x, side).0;
-    if let Some((a, b)) = edges[i] {
-        for v in [a, b] {
-            if cut.tip[v].is_some() {
-                u -= (fr.exact(&x, side).0 - fr.exact(&mesh.nodes[v], cut.node_side[v]).0) * 0.5;
-            }
-        }
-    }
-    u
-}
-
-/// Per node, the vertices of the edge it is the mid-node of (Tet10).
-fn mid_edges(mesh: &TetMesh) -> Vec<Option<(usize, usize)>> {
-    let mut out = vec![None; mesh.n_nodes()];
-    if mesh.kind == ElementKind::Tet10 {
-        for e in 0..mesh.n_elements() {
-            let c = mesh.element(e);
-            for (k, &(a, b)) in xfem_cut::mesh::TET10_EDGES.iter().enumerate() {
-                out[c[4 + k]] = Some((c[a], c[b]));
-            }
-        }
-    }
-    out
-}
-
-/// Prescribed values on every boundary node: standard DOFs the exact nodal
-/// value, Heaviside DOFs the jump to the other side's continuation
-/// (u_other = −u_i, every branch function changes sign under θ → θ − 2π),
-/// tip DOFs the Williams coefficients b_k.
-fn boundary_values(fr: &Front, mesh: &TetMesh, cut: &CutSetup) -> Vec<(usize, [Option<f64>; 3])> {
-    let n_nodes = mesh.n_nodes();
-    let edges = mid_edges(mesh);
-    let mut fixed = Vec::new();
-    for (i, p) in mesh.nodes.iter().enumerate() {
-        let on_boundary = (0..3).any(|c| p[c].abs() < 1e-12 || (p[c] - 1.0).abs() < 1e-12);
-        if !on_boundary {
-            continue;
-        }
-        let side = cut.node_side[i];
-        let u = standard_value(fr, mesh, cut, &edges, i);
-        fixed.push((i, [Some(u.x), Some(u.y), Some(u.z)]));
-        if let Some(j) = cut.enriched[i] {
-            let a = u * (2.0 * f64::from(side));
-            fixed.push((n_nodes + j, [Some(a.x), Some(a.y), Some(a.z)]));
-        }
-        if let Some(t) = cut.tip[i] {
-            for k in 0..N_BRANCH {
-                let b = fr.b[k];
-                fixed.push((
-                    n_nodes + cut.n_enriched + N_BRANCH * t + k,
-                    [Some(b.x), Some(b.y), Some(b.z)],
-                ));
-            }
-        }
-    }
-    fixed
 }
 
 struct Run {

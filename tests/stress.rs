@@ -42,3 +42,11 @@ fn inverted_elements_keep_proper_rotations_and_finite_states() {
 fn nearly_incompressible_material_solves_accurately() {
     all_pass("poisson", 10);
 }
+
+/// Crack fronts (tip enrichment, topological and geometric) 1e-3 … 1e-12 h
+/// beside a node line and a face plane: finite, relative residual ≤ 1e-8,
+/// condition estimates reported.
+#[test]
+fn fronts_near_nodes_edges_and_faces_solve_accurately() {
+    all_pass("front-near", 16);
+}

@@ -36,6 +36,13 @@ pub enum IoError {
     /// The content is malformed or inconsistent (or, for a writer, the data given is).
     #[error("{}: {message}", file.display())]
     Invalid { file: PathBuf, message: String },
+    /// The arrays of a VTU grid do not fit together (read, or given to a writer).
+    #[error("{}: {source}", file.display())]
+    Grid {
+        file: PathBuf,
+        #[source]
+        source: Box<vtu::GridError>,
+    },
     /// Well-formed, but uses a feature we do not read (compression, hexahedra, …).
     #[error("{}: unsupported: {message}", file.display())]
     Unsupported { file: PathBuf, message: String },
@@ -47,6 +54,14 @@ impl IoError {
         IoError::Invalid {
             file: file.to_path_buf(),
             message: message.into(),
+        }
+    }
+
+    /// An inconsistent VTU grid in (or for) `file`.
+    pub fn grid(file: &Path, source: vtu::GridError) -> IoError {
+        IoError::Grid {
+            file: file.to_path_buf(),
+            source: Box::new(source),
         }
     }
 
@@ -77,6 +92,7 @@ impl IoError {
         match self {
             IoError::Os { file, .. }
             | IoError::Invalid { file, .. }
+            | IoError::Grid { file, .. }
             | IoError::Unsupported { file, .. } => file,
         }
     }

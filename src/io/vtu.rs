@@ -98,31 +98,24 @@ impl VtuData {
     }
 
     /// Why the arrays do not describe a valid grid, if they do not.
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), GridError> {
         if !self.points.len().is_multiple_of(3) {
-            return Err(format!(
-                "{} point coordinates is not a multiple of 3",
-                self.points.len()
-            ));
+            return Err(GridError::Coordinates(self.points.len()));
         }
         if self.types.len() != self.offsets.len() {
-            return Err(format!(
-                "{} cell types for {} cell offsets",
-                self.types.len(),
-                self.offsets.len()
-            ));
+            return Err(GridError::CellTypes {
+                types: self.types.len(),
+                offsets: self.offsets.len(),
+            });
         }
         if self.offsets.windows(2).any(|w| w[1] < w[0])
             || self.offsets.last().copied().unwrap_or(0) != self.connectivity.len()
         {
-            return Err(format!(
-                "cell offsets do not end each cell in the connectivity ({} entries)",
-                self.connectivity.len()
-            ));
+            return Err(GridError::Offsets(self.connectivity.len()));
         }
         let n = self.n_points();
-        if let Some(i) = self.connectivity.iter().find(|&&i| i >= n) {
-            return Err(format!("a cell uses point {i}, but there are {n} points"));
+        if let Some(&point) = self.connectivity.iter().find(|&&i| i >= n) {
+            return Err(GridError::Point { point, points: n });
         }
         for (kind, fields, count) in [
             ("point", &self.point_data, n),
@@ -130,15 +123,39 @@ impl VtuData {
         ] {
             for (name, (comps, values)) in fields {
                 if *comps == 0 || values.len() != comps * count {
-                    return Err(format!(
-                        "{kind} data `{name}` has {} values, expected {comps} × {count}",
-                        values.len()
-                    ));
+                    return Err(GridError::Field {
+                        kind,
+                        name: name.clone(),
+                        values: values.len(),
+                        comps: *comps,
+                        count,
+                    });
                 }
             }
         }
         Ok(())
     }
+}
+
+/// Why a [`VtuData`]'s arrays do not describe a valid grid.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GridError {
+    #[error("{0} point coordinates is not a multiple of 3")]
+    Coordinates(usize),
+    #[error("{types} cell types for {offsets} cell offsets")]
+    CellTypes { types: usize, offsets: usize },
+    #[error("cell offsets do not end each cell in the connectivity ({0} entries)")]
+    Offsets(usize),
+    #[error("a cell uses point {point}, but there are {points} points")]
+    Point { point: usize, points: usize },
+    #[error("{kind} data `{name}` has {values} values, expected {comps} × {count}")]
+    Field {
+        kind: &'static str,
+        name: String,
+        values: usize,
+        comps: usize,
+        count: usize,
+    },
 }
 
 #[derive(Clone, Copy, PartialEq)]
@@ -160,7 +177,7 @@ pub fn write_vtu_ascii(path: &Path, data: &VtuData) -> Result<(), IoError> {
 }
 
 fn write_vtu_encoded(path: &Path, data: &VtuData, enc: Encoding) -> Result<(), IoError> {
-    data.check().map_err(|m| IoError::invalid(path, m))?;
+    data.check().map_err(|e| IoError::grid(path, e))?;
     if let Some(name) = data
         .point_data
         .keys()
@@ -753,7 +770,7 @@ pub fn read_vtu(path: &Path) -> Result<VtuData, IoError> {
             data.n_cells()
         )));
     }
-    data.check().map_err(err)?;
+    data.check().map_err(|e| IoError::grid(path, e))?;
     Ok(data)
 }
 

@@ -61,6 +61,25 @@ pub fn read_reference(path: &Path) -> Result<Reference, IoError> {
     Ok(Reference { mesh, u })
 }
 
+/// Why two meshes are not the same mesh (element by element, node by node).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SameMeshError {
+    #[error("meshes differ: ours {ours} {ours_kind}, reference {reference} {reference_kind}")]
+    Meshes {
+        ours: usize,
+        ours_kind: &'static str,
+        reference: usize,
+        reference_kind: &'static str,
+    },
+    #[error("element {0} has other vertices in the reference")]
+    Vertices(usize),
+    #[error("edge {edge:?} of element {element} missing in the reference")]
+    Edge {
+        element: usize,
+        edge: (usize, usize),
+    },
+}
+
 /// Relative difference ‖u_ours − u_ref‖ / ‖u_ref‖ over the nodes of the same
 /// mesh: `ours` is our mesh (read from the same `.msh`, Tet4 or Tet10 made
 /// from it) with nodal displacements `d` (first 3 × n_nodes entries). Nodes
@@ -70,15 +89,14 @@ pub fn same_mesh_difference(
     ours: &TetMesh,
     d: &[f64],
     reference: &Reference,
-) -> Result<f64, String> {
+) -> Result<f64, SameMeshError> {
     if ours.kind != reference.mesh.kind || ours.n_elements() != reference.mesh.n_elements() {
-        return Err(format!(
-            "meshes differ: ours {} {}, reference {} {}",
-            ours.n_elements(),
-            ours.kind.name(),
-            reference.mesh.n_elements(),
-            reference.mesh.kind.name()
-        ));
+        return Err(SameMeshError::Meshes {
+            ours: ours.n_elements(),
+            ours_kind: ours.kind.name(),
+            reference: reference.mesh.n_elements(),
+            reference_kind: reference.mesh.kind.name(),
+        });
     }
     let edge_key = |m: &TetMesh, e: usize, k: usize| {
         let v = m.vertices(e);
@@ -94,7 +112,7 @@ pub fn same_mesh_difference(
         ov.sort_unstable();
         rv.sort_unstable();
         if ov != rv {
-            return Err(format!("element {e} has other vertices in the reference"));
+            return Err(SameMeshError::Vertices(e));
         }
         for &i in &oc[..4] {
             map.insert(i, i);
@@ -105,9 +123,10 @@ pub fn same_mesh_difference(
                 .collect();
             for k in 0..6 {
                 let key = edge_key(ours, e, k);
-                let r = *ref_edges.get(&key).ok_or(format!(
-                    "edge {key:?} of element {e} missing in the reference"
-                ))?;
+                let r = *ref_edges.get(&key).ok_or(SameMeshError::Edge {
+                    element: e,
+                    edge: key,
+                })?;
                 map.insert(oc[4 + k], r);
             }
         }

@@ -39,8 +39,9 @@ pub struct StressRow {
 type Family = fn() -> Vec<StressRow>;
 
 /// The families of the suite, by short name.
-pub const FAMILIES: [(&str, Family); 7] = [
+pub const FAMILIES: [(&str, Family); 8] = [
     ("near-node", cut_near_nodes),
+    ("front-near", front_near_mesh),
     ("poisson", poisson_ratio),
     ("dt", time_step),
     ("long", long_undamped),
@@ -341,6 +342,86 @@ points = [[{}, {}, {}]]
             div[0], div[1], div[2], probe[0], probe[1], probe[2]
         ),
     )
+}
+
+/// A crack front (tip enrichment, topological and within 0.3 of the front)
+/// δ·h from the mesh, δ = 1e-3 … 1e-12: beside a node line (the cut plane
+/// δh above a node layer, the front δh beside a line of its nodes and
+/// edges), and beside a face (the cut plane mid-element, the front δh from
+/// the face plane x = 0.5). The tip functions of nodes almost on the front
+/// are almost zero and cells almost degenerate: the solve must stay finite
+/// and accurate (relative residual), and the system's condition is reported.
+/// Topological enrichment finds no front element once the front lies on the
+/// faces (δ ≲ 1e-9: the cut then ends there exactly, as extended);
+/// `tip_radius` enriches the same nodes at every δ.
+fn front_near_mesh() -> Vec<StressRow> {
+    const TEST: &str = "front near nodes, edges, faces";
+    // 1 × 1 × 2 bar, 4 × 4 × 8 hexes (h = 0.25), both ends clamped, gravity.
+    let scene = |zc: f64, xf: f64, radius: &str| {
+        parse(
+            "front_bar",
+            &format!(
+                r#"name = "front_bar"
+[body]
+box = [[0.0, 0.0, 0.0], [1.0, 1.0, 2.0]]
+levels = [[4, 4, 8]]
+[material]
+young = 1.0e4
+poisson = 0.3
+density = 1000.0
+[[cut]]
+origin = [-0.5, -0.5, {zc}]
+u = [0.0, 2.0, 0.0]
+v = [{v}, 0.0, 0.0]
+front = "tip"
+{radius}
+{BOTTOM}{TOP}{GRAVITY_DOWN}[analysis]
+type = "static"
+"#,
+                v = xf + 0.5
+            ),
+        )
+    };
+    let h = 0.25;
+    let criterion = "finite; relative residual ≤ 1e-8";
+    let mut rows = Vec::new();
+    for (place, zc0, xf0) in [("node line", 1.0, 0.5), ("face", 1.125, 0.5)] {
+        for (enrichment, radius) in [("topological", ""), ("R = 0.3", "tip_radius = 0.3")] {
+            for delta in [1e-3, 1e-6, 1e-9, 1e-12] {
+                let t = Instant::now();
+                let zc = if place == "node line" {
+                    zc0 + delta * h
+                } else {
+                    zc0
+                };
+                let setting = format!("{place}, δ = {delta:e} h, {enrichment}");
+                match solve_scene(&scene(zc, xf0 + delta * h, radius), 0, None, false) {
+                    Ok(r) => {
+                        let kappa = condition_estimate(&r.model, &r.d);
+                        let (heaviside, tip) = r
+                            .model
+                            .cut
+                            .as_ref()
+                            .map_or((0, 0), |c| (c.n_heaviside(), c.n_tip()));
+                        rows.push(row(
+                            TEST,
+                            setting,
+                            format!(
+                                "{tip} tip, {heaviside} Heaviside nodes; residual {:.1e}; κ ≈ {}",
+                                r.residual,
+                                fmt_kappa(kappa)
+                            ),
+                            criterion,
+                            finite(&r) && r.residual <= 1e-8,
+                            t,
+                        ));
+                    }
+                    Err(e) => rows.push(failed(TEST, setting, criterion, &e, t)),
+                }
+            }
+        }
+    }
+    rows
 }
 
 /// ν from 0.3 to 0.499 on the cut beam under gravity, Tet4 and Tet10: the
