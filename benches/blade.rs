@@ -1,14 +1,26 @@
-//! Criterion benches of progressive cuts: one cut event (set-up at the new
-//! time, model rebuilt, state mapped, symbolic factorisation, then the step
-//! after it with its numeric refactorisation) against a step during the sweep
-//! and a step of the uncut beam, Tet4 1k/10k and Tet10 1k, linear and
-//! corotational. Short runs: `cargo bench --bench blade -- --warm-up-time 1 --measurement-time 2`.
+//! Criterion benches of progressive cuts: one cut event against a step
+//! during the sweep and a step of the uncut beam, Tet4 1k/10k and Tet10 1k,
+//! linear and corotational.
+//!
+//! - `event_update`: what an event costs today: the set-up at the new time,
+//!   [`Model::update_cut`], the state mapped, the symbolic factorisation
+//!   (the pattern grows at these events), then the step after it with its
+//!   numeric refactorisation; `event_rebuild`: the same with the model built
+//!   again (the previous code path).
+//! - Its phases: `setup`, `update` / `build` (the model), `symbolic`,
+//!   `first_step` (integrator, numeric factorisation and the step's solve).
+//!
+//! - Linear: `event_refactor` against `event_bordered` (the new system
+//!   solved by refactorisation or by [`BorderedSolve`] on the old factor),
+//!   and one solve of each.
+//!
+//! Short runs: `cargo bench --bench blade -- --warm-up-time 1 --measurement-time 3`.
 
-use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion};
 use std::hint::black_box;
-use xfem_cut::blade::{map_state, same_setup, CutSet};
+use xfem_cut::blade::{map_state, same_setup, stiffness_plus_mass, BorderedSolve, CutSet};
 use xfem_cut::cut::CutSetup;
-use xfem_cut::dynamics::{DynamicOptions, Newmark};
+use xfem_cut::dynamics::{DynamicOptions, Newmark, State};
 use xfem_cut::mesh::TetMesh;
 use xfem_cut::model::{Formulation, Model};
 use xfem_cut::solve::Cholesky;
@@ -22,6 +34,102 @@ fn model(mesh: &TetMesh, cut: Option<CutSetup>, formulation: Formulation) -> Mod
 /// A blade opening the seed's cut (x from 0 to 0.015 at z = 0.1) during [0, 1] s.
 fn cuts() -> CutSet {
     seed_blade(0.0, 1.0)
+}
+
+/// The step after an event on `model` from the mapped `state` (integrator,
+/// numeric factorisation, the step), on the factorisation `chol`.
+fn first_step(model: &Model, chol: Cholesky, state: State, opts: DynamicOptions) {
+    let mut nb = Newmark::new(model, chol, opts).unwrap();
+    nb.state = state;
+    black_box(nb.step().unwrap());
+}
+
+/// The linear system after the event solved two ways, each from the set-up
+/// at the new time: `event_refactor` (model update, K + cM assembled,
+/// symbolic and numeric factorisation, one solve) against `event_bordered`
+/// (model update, K + cM assembled, [`BorderedSolve`] on the old factor,
+/// one solve); and one solve of each (`solve_factor`, `solve_bordered`).
+fn bordered(
+    group: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+    name: &str,
+    model_a: &Model,
+    updated: &Model,
+    cuts: &CutSet,
+    mesh: &TetMesh,
+    t_b: f64,
+) {
+    // c = 1/(β dt²) of the benches' 5 ms step.
+    let c = 1.0 / (0.25 * 0.005f64.powi(2));
+    let a_old = stiffness_plus_mass(model_a, c);
+    let mut old = Cholesky::new(&model_a.pattern).unwrap();
+    old.factorize(&a_old).unwrap();
+    let b: Vec<f64> = (0..updated.n_free)
+        .map(|i| ((i as f64) * 0.71).cos())
+        .collect();
+    let a_new = stiffness_plus_mass(updated, c);
+    let mut direct = Cholesky::new(&updated.pattern).unwrap();
+    direct.factorize(&a_new).unwrap();
+    let mut bs = BorderedSolve::new(
+        &mut old,
+        &model_a.pattern,
+        &a_old,
+        &updated.pattern,
+        &a_new,
+        1e-13,
+    )
+    .unwrap();
+    let (mut x, mut y) = (b.clone(), b.clone());
+    bs.solve_in_place(&mut old, &mut x);
+    direct.solve_in_place(&mut y);
+    let diff = x
+        .iter()
+        .zip(&y)
+        .fold(0.0f64, |m, (p, q)| m.max((p - q).abs()))
+        / y.iter().fold(0.0f64, |m, q| m.max(q.abs()));
+    eprintln!(
+        "{name}: border {} ({} solves on the old factor), bordered vs refactorised {diff:.1e}",
+        bs.border(),
+        bs.event_solves()
+    );
+    group.bench_function(BenchmarkId::new("event_refactor", name), |bn| {
+        bn.iter(|| {
+            let s = cuts.setup_at(mesh, t_b).unwrap();
+            let (m, _) = model_a.update_cut(s).unwrap();
+            let a = stiffness_plus_mass(&m, c);
+            let mut chol = Cholesky::new(&m.pattern).unwrap();
+            chol.factorize(&a).unwrap();
+            let mut x = b.clone();
+            chol.solve_in_place(&mut x);
+            black_box(x)
+        })
+    });
+    group.bench_function(BenchmarkId::new("event_bordered", name), |bn| {
+        bn.iter(|| {
+            let s = cuts.setup_at(mesh, t_b).unwrap();
+            let (m, _) = model_a.update_cut(s).unwrap();
+            let a = stiffness_plus_mass(&m, c);
+            let mut bs =
+                BorderedSolve::new(&mut old, &model_a.pattern, &a_old, &m.pattern, &a, 1e-13)
+                    .unwrap();
+            let mut x = b.clone();
+            bs.solve_in_place(&mut old, &mut x);
+            black_box(x)
+        })
+    });
+    group.bench_function(BenchmarkId::new("solve_factor", name), |bn| {
+        bn.iter(|| {
+            let mut x = b.clone();
+            direct.solve_in_place(&mut x);
+            black_box(x)
+        })
+    });
+    group.bench_function(BenchmarkId::new("solve_bordered", name), |bn| {
+        bn.iter(|| {
+            let mut x = b.clone();
+            bs.solve_in_place(&mut old, &mut x);
+            black_box(x)
+        })
+    });
 }
 
 fn benches(c: &mut Criterion) {
@@ -72,27 +180,56 @@ fn benches(c: &mut Criterion) {
             group.bench_function(BenchmarkId::new("step_sweep", &name), |b| {
                 b.iter(|| black_box(nm.step().unwrap()))
             });
-            // What an event adds: check + set-up, model, state map, symbolic; then the step after it.
-            group.bench_function(BenchmarkId::new("event_and_step", &name), |b| {
+            let (updated, stats) = model_a.update_cut(setup_b.clone()).unwrap();
+            let pattern_changed = updated.pattern.col_ptr != model_a.pattern.col_ptr
+                || updated.pattern.row_idx != model_a.pattern.row_idx;
+            eprintln!(
+                "{name}: event at t = {t_b:.3}: {} of {} elements integrated again, {} equations added ({} → {}), pattern changed: {pattern_changed}",
+                stats.changed_elements,
+                mesh.n_elements(),
+                stats.new_equations,
+                model_a.n_free,
+                updated.n_free
+            );
+            let symbolic = |m: &Model| Cholesky::new(&m.pattern).unwrap();
+            group.bench_function(BenchmarkId::new("event_update", &name), |b| {
+                b.iter(|| {
+                    let s = cuts.setup_at(&mesh, t_b).unwrap();
+                    let (model_b, _) = model_a.update_cut(s).unwrap();
+                    let mapped = map_state(&model_a, &model_b, &state_a);
+                    first_step(&model_b, symbolic(&model_b), mapped, opts);
+                })
+            });
+            group.bench_function(BenchmarkId::new("event_rebuild", &name), |b| {
                 b.iter(|| {
                     let s = cuts.setup_at(&mesh, t_b).unwrap();
                     let model_b = model(&mesh, s, formulation);
                     let mapped = map_state(&model_a, &model_b, &state_a);
-                    let chol = Cholesky::new(&model_b.pattern).unwrap();
-                    let mut nb = Newmark::new(&model_b, chol, opts).unwrap();
-                    nb.state = mapped;
-                    black_box(nb.step().unwrap())
+                    first_step(&model_b, symbolic(&model_b), mapped, opts);
                 })
             });
             group.bench_function(BenchmarkId::new("setup", &name), |b| {
                 b.iter(|| black_box(cuts.setup_at(&mesh, t_b).unwrap()))
             });
-            group.bench_function(BenchmarkId::new("model", &name), |b| {
+            group.bench_function(BenchmarkId::new("update", &name), |b| {
+                b.iter(|| black_box(model_a.update_cut(setup_b.clone()).unwrap()))
+            });
+            group.bench_function(BenchmarkId::new("build", &name), |b| {
                 b.iter(|| black_box(model(&mesh, setup_b.clone(), formulation)))
             });
-            let model_b = model(&mesh, setup_b.clone(), formulation);
             group.bench_function(BenchmarkId::new("symbolic", &name), |b| {
-                b.iter(|| black_box(Cholesky::new(&model_b.pattern).unwrap()))
+                b.iter(|| black_box(symbolic(&updated)))
+            });
+            if formulation == Formulation::Linear {
+                bordered(&mut group, &name, &model_a, &updated, &cuts, &mesh, t_b);
+            }
+            let mapped = map_state(&model_a, &updated, &state_a);
+            group.bench_function(BenchmarkId::new("first_step", &name), |b| {
+                b.iter_batched(
+                    || (symbolic(&updated), mapped.clone()),
+                    |(chol, state)| first_step(&updated, chol, state, opts),
+                    BatchSize::LargeInput,
+                )
             });
         }
     }

@@ -8,7 +8,9 @@
 //!   triangles between consecutive edges ([`TriangleSurface`]).
 //! - A *cut event* is a step after which the cut set-up differs (elements
 //!   newly cut or touched, nodes newly enriched). The set-up is rebuilt and
-//!   the model built again; the Newmark state is mapped onto the new DOFs:
+//!   the model updated where it changed ([`Model::update_cut`]: only the
+//!   elements whose cut or enrichment changed are integrated again); the
+//!   Newmark state is mapped onto the new DOFs:
 //!   standard DOFs keep their values, enriched DOFs of nodes that were
 //!   enriched before keep theirs, new shifted-enrichment DOFs start at zero
 //!   displacement, velocity and acceleration. Since Nᵢ(H − Hᵢ)·0 = 0 (seed
@@ -18,9 +20,7 @@
 //! - A static scene takes the completed sweep ([`CutSet::completed`]).
 
 use crate::assembly::Rotations;
-use crate::cut::{
-    setup_cut, CutError, CutInput, CutSetup, CutSurface, ElementCut, FrontMode, PlanarPatch,
-};
+use crate::cut::{setup_cut, CutError, CutInput, CutSetup, CutSurface, FrontMode, PlanarPatch};
 use crate::dynamics::{DynamicError, DynamicOptions, Energies, Newmark, State};
 use crate::mesh::TetMesh;
 use crate::model::{Model, ModelError};
@@ -638,31 +638,7 @@ pub fn same_setup(a: Option<&CutSetup>, b: Option<&CutSetup>) -> bool {
                 && a.elements
                     .iter()
                     .zip(&b.elements)
-                    .all(|(x, y)| same_element(x, y))
-        }
-        _ => false,
-    }
-}
-
-fn same_element(a: &ElementCut, b: &ElementCut) -> bool {
-    match (a, b) {
-        (ElementCut::Uncut, ElementCut::Uncut) => true,
-        (ElementCut::Touched { side: x }, ElementCut::Touched { side: y }) => x == y,
-        (
-            ElementCut::Cut {
-                sub_tets: s,
-                partial: p,
-            },
-            ElementCut::Cut {
-                sub_tets: t,
-                partial: q,
-            },
-        ) => {
-            p == q
-                && s.len() == t.len()
-                && s.iter()
-                    .zip(t)
-                    .all(|(x, y)| x.side == y.side && x.vertices == y.vertices)
+                    .all(|(x, y)| crate::model::same_element_cut(x, y))
         }
         _ => false,
     }
@@ -675,10 +651,120 @@ fn same_element(a: &ElementCut, b: &ElementCut) -> bool {
 /// field: uᵢ + (H − Hᵢ)/2 aᵢ = uᵢ' + (H + Hᵢ)/2 aᵢ. With a tip front, a
 /// node's tip block is kept while it stays tip-enriched; a node the front
 /// has passed (tip → Heaviside) starts its Heaviside DOFs at zero and drops
-/// its tip DOFs: no projection yet, so the field changes there and the
-/// event's energies show by how much. Rotations start at the identity
+/// its tip DOFs; then [`project_tip_change`] fits the DOFs whose meaning
+/// changed (every tip block, the Heaviside DOFs of nodes tip-enriched
+/// before) to the old field by least squares, for d, v and a; the event's
+/// energies show what remains. Rotations start at the identity
 /// (corotational steps recompute them from d).
 pub fn map_state(old: &Model, new: &Model, state: &State) -> State {
+    let mut mapped = map_state_unprojected(old, new, state);
+    project_tip_change(old, new, state, &mut mapped);
+    mapped
+}
+
+/// Least-squares projection at a cut event where DOFs change meaning (a
+/// tip front moved: its branch functions follow it, and nodes it passed
+/// turn from tip- to Heaviside-enriched; METHODS.md, "Blades"). The fitted
+/// DOFs F are every tip block of `new` and the Heaviside DOFs of nodes
+/// tip-enriched in `old`; the others keep their mapped values. Over the
+/// elements holding an F shape function (the quadrature points of
+/// [`Model::field_points`], side by side) F minimises ∫ |u_new − u_old|²:
+/// M_FF a_F = ∫ φ_F (u_old − Σ_{b∉F} φ_b a_b), one scalar Gram matrix for
+/// the three components and for d, v and a. Nothing is done without tip
+/// nodes (shifted Heaviside DOFs starting at zero keep the field exactly),
+/// nor where the Gram matrix is not positive definite (mapped values kept).
+pub fn project_tip_change(old: &Model, new: &Model, state: &State, mapped: &mut State) {
+    let (Some(oc), Some(nc)) = (&old.cut, &new.cut) else {
+        return;
+    };
+    if oc.n_tip == 0 && nc.n_tip == 0 {
+        return;
+    }
+    let n_nodes = new.mesh.n_nodes();
+    let mut slot = vec![usize::MAX; new.n_shape];
+    let mut fitted = Vec::new();
+    for i in 0..n_nodes {
+        if let Some(t) = nc.tip.get(i).copied().flatten() {
+            for b in 0..crate::front::N_BRANCH {
+                fitted.push(n_nodes + nc.n_enriched + crate::front::N_BRANCH * t + b);
+            }
+        }
+        if let (Some(j), Some(_)) = (nc.enriched[i], oc.tip.get(i).copied().flatten()) {
+            fitted.push(n_nodes + j);
+        }
+    }
+    if fitted.is_empty() {
+        return;
+    }
+    for (k, &s) in fitted.iter().enumerate() {
+        slot[s] = k;
+    }
+    let nf = fitted.len();
+    let mut gram = nalgebra::DMatrix::<f64>::zeros(nf, nf);
+    let mut rhs = nalgebra::DMatrix::<f64>::zeros(nf, 9);
+    let olds = [&state.d, &state.v, &state.a];
+    let news = [&mapped.d, &mapped.v, &mapped.a];
+    for e in 0..new.mesh.n_elements() {
+        let ids = new.element_shapes(e);
+        if ids.iter().all(|&s| slot[s as usize] == usize::MAX) {
+            continue;
+        }
+        let old_ids = old.element_shapes(e);
+        for (x, w, side) in new.field_points(e) {
+            let vals = new.shape_values_at(e, &x, side);
+            let old_vals = old.shape_values_at(e, &x, side);
+            for (f, (vo, vn)) in olds.iter().zip(&news).enumerate() {
+                let mut r = Vector3::zeros();
+                for (a, &s) in old_ids.iter().enumerate() {
+                    let s = s as usize;
+                    r += Vector3::new(vo[3 * s], vo[3 * s + 1], vo[3 * s + 2]) * old_vals[a];
+                }
+                for (a, &s) in ids.iter().enumerate() {
+                    if slot[s as usize] == usize::MAX {
+                        let s = s as usize;
+                        r -= Vector3::new(vn[3 * s], vn[3 * s + 1], vn[3 * s + 2]) * vals[a];
+                    }
+                }
+                for (a, &s) in ids.iter().enumerate() {
+                    let sa = slot[s as usize];
+                    if sa != usize::MAX {
+                        for c in 0..3 {
+                            rhs[(sa, 3 * f + c)] += w * vals[a] * r[c];
+                        }
+                    }
+                }
+            }
+            for (a, &s) in ids.iter().enumerate() {
+                let sa = slot[s as usize];
+                if sa == usize::MAX {
+                    continue;
+                }
+                for (b, &t) in ids.iter().enumerate() {
+                    let sb = slot[t as usize];
+                    if sb != usize::MAX {
+                        gram[(sa, sb)] += w * vals[a] * vals[b];
+                    }
+                }
+            }
+        }
+    }
+    let Some(chol) = gram.cholesky() else {
+        return;
+    };
+    let x = chol.solve(&rhs);
+    let targets = [&mut mapped.d, &mut mapped.v, &mut mapped.a];
+    for (f, y) in targets.into_iter().enumerate() {
+        for (k, &s) in fitted.iter().enumerate() {
+            for c in 0..3 {
+                y[3 * s + c] = x[(k, 3 * f + c)];
+            }
+        }
+    }
+}
+
+/// [`map_state`] without the projection: DOFs that change meaning keep
+/// their values (tip blocks) or start at zero (tip → Heaviside).
+pub fn map_state_unprojected(old: &Model, new: &Model, state: &State) -> State {
     let n_nodes = new.mesh.n_nodes();
     let n = new.n_dofs();
     let map = |x: &[f64]| -> Vec<f64> {
@@ -738,6 +824,11 @@ pub struct Event {
     pub after: Energies,
     /// Whether the sparsity pattern changed (symbolic factorisation redone).
     pub pattern_changed: bool,
+    /// Elements integrated again ([`Model::update_cut`]).
+    pub changed_elements: usize,
+    /// Seconds of the model update and of the symbolic factorisation (both in `seconds`).
+    pub model_seconds: f64,
+    pub symbolic_seconds: f64,
     /// Seconds spent in the event (set-up, model, state map, symbolic).
     pub seconds: f64,
 }
@@ -764,12 +855,35 @@ pub struct Sweep {
     pub series: Vec<(f64, f64, bool)>,
 }
 
+impl Event {
+    /// |ΔE| / E of kinetic + strain energy across the event (0 where both are 0).
+    pub fn energy_jump(&self) -> f64 {
+        let total = |x: &Energies| x.kinetic + x.strain;
+        let before = total(&self.before);
+        if before == 0.0 {
+            return (total(&self.after) - before).abs();
+        }
+        (total(&self.after) - before).abs() / before
+    }
+}
+
+impl Sweep {
+    /// The largest [`Event::energy_jump`] of the sweep (tip → Heaviside
+    /// changes are not projected: with a tip front this is where the field changes).
+    pub fn largest_energy_jump(&self) -> f64 {
+        self.events
+            .iter()
+            .map(Event::energy_jump)
+            .fold(0.0, f64::max)
+    }
+}
+
 impl std::fmt::Display for Sweep {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let patterns = self.events.iter().filter(|e| e.pattern_changed).count();
         write!(
             f,
-            "sweep {:.4} → {:.4} s: {} cut events ({} changed the pattern, {} set-ups checked), DOFs {} → {}, {} symbolic / {} numeric factorisations, {:.3} s in events, {:.3} s checking, {:.3} s in steps",
+            "sweep {:.4} → {:.4} s: {} cut events ({} changed the pattern, {} set-ups checked), DOFs {} → {}, {} symbolic / {} numeric factorisations, {:.3} s in events, {:.3} s checking, {:.3} s in steps, largest energy change at an event {:.1e}",
             self.start,
             self.end,
             self.events.len(),
@@ -781,7 +895,8 @@ impl std::fmt::Display for Sweep {
             self.factorisations,
             self.event_seconds,
             self.check_seconds,
-            self.step_seconds
+            self.step_seconds,
+            self.largest_energy_jump()
         )
     }
 }
@@ -882,16 +997,29 @@ pub fn run_dynamic(
         sweep.factorisations += nm.factorisations() - counted;
         let state = nm.state.clone();
         let old_chol = nm.into_cholesky();
-        let new_model = build(setup)?;
+        let t_model = Instant::now();
+        // Only the elements the grown cut changed are integrated again
+        // (a model with a varying body force is built again).
+        let (new_model, changed_elements) = if model.body_force {
+            let m = build(setup)?;
+            let n = m.mesh.n_elements();
+            (m, n)
+        } else {
+            let (m, stats) = model.update_cut(setup)?;
+            (m, stats.changed_elements)
+        };
+        let model_seconds = t_model.elapsed().as_secs_f64();
         let mapped = map_state(&model, &new_model, &state);
         let pattern_changed = new_model.pattern.col_ptr != model.pattern.col_ptr
             || new_model.pattern.row_idx != model.pattern.row_idx;
+        let t_symbolic = Instant::now();
         chol = if pattern_changed {
             sweep.symbolic += 1;
             Cholesky::new(&new_model.pattern)?
         } else {
             old_chol
         };
+        let symbolic_seconds = t_symbolic.elapsed().as_secs_f64();
         let event = Event {
             step,
             time: state.time,
@@ -902,11 +1030,249 @@ pub fn run_dynamic(
             before,
             after: Energies::default(),
             pattern_changed,
+            changed_elements,
+            model_seconds,
+            symbolic_seconds,
             seconds: t.elapsed().as_secs_f64(),
         };
         model = new_model;
         carried = Some((mapped, event));
     }
+}
+
+/// A bordered solve of a grown linear system on the factor of the old one
+/// (METHODS.md, "Blades": reanalysis for growing cracks), measured against
+/// refactorisation in `benches/blade.rs`.
+///
+/// After a cut event without dropped DOFs the new matrix (equations of
+/// [`Model::update_cut`]: the old ones keep their numbers, new ones are
+/// appended) is A = A₀ + Δ with A₀ = blockdiag(A_old, D), D the diagonal
+/// of A on the new equations, and
+/// Δ = [[E, B], [Bᵀ, C − D]]: E the changes among old equations (the
+/// enriched DOFs of the changed elements), B the coupling of the new
+/// equations to the old ones, C their block. Δ = U W Uᵀ with
+/// U = [P_E, B̂, P_N] (P_E the unit columns of E's equations, B̂ = [B; 0],
+/// P_N those of the new equations) and W = [[E, 0, 0], [0, 0, I], [0, I, C − D]].
+/// With Z = A₀⁻¹U (one solve on the old factor per column of P_E and B̂,
+/// once per event) and G = UᵀZ, A x = b is x = y − Z s, y = A₀⁻¹b,
+/// (I + W G) s = W Uᵀy (Woodbury): one solve on the old factor and a dense
+/// solve of the border per right-hand side.
+pub struct BorderedSolve {
+    n_old: usize,
+    /// Old equations with changed entries among themselves (E's).
+    changed: Vec<usize>,
+    /// B̂'s columns: (old equation, value) per new equation.
+    coupling: Vec<Vec<(usize, f64)>>,
+    /// D on the new equations (index eq − n_old).
+    diagonal: Vec<f64>,
+    /// Z = A₀⁻¹U, n × k.
+    z: nalgebra::DMatrix<f64>,
+    w: nalgebra::DMatrix<f64>,
+    /// LU of I + W G (none for an empty border).
+    lu: Option<nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>>,
+    /// Scratch of the old equations.
+    old: Vec<f64>,
+}
+
+impl BorderedSolve {
+    /// The bordered solve of the matrix `new_values` (lower CSC on `new`)
+    /// on `chol`, factorised with `old_values` on `old`; `None` where the
+    /// new system dropped or renumbered old equations (refactorise then).
+    /// Changes among old equations with |A − A_old| ≤ `tol` × (the
+    /// geometric mean of their diagonals) are left out of E (0: none; 1e-13
+    /// leaves out the round-off changes of the standard blocks of newly cut
+    /// Tet4, whose side volumes sum to the element's only to round-off: the
+    /// solve is then that of a matrix within `tol` of A).
+    pub fn new(
+        chol: &mut Cholesky,
+        old: &crate::solve::Pattern,
+        old_values: &[f64],
+        new: &crate::solve::Pattern,
+        new_values: &[f64],
+        tol: f64,
+    ) -> Option<BorderedSolve> {
+        let (n_old, n) = (old.n, new.n);
+        if n < n_old {
+            return None;
+        }
+        let k_new = n - n_old;
+        let old_value = |r: usize, c: usize| old.position(r, c).map_or(0.0, |p| old_values[p]);
+        let diagonal_of: Vec<f64> = (0..n)
+            .map(|c| new.position(c, c).map_or(0.0, |p| new_values[p]))
+            .collect();
+        let diagonal = diagonal_of[n_old..].to_vec();
+        if diagonal.iter().any(|&d| d <= 0.0) {
+            return None;
+        }
+        let (mut e, mut c_minus_d) = (Vec::new(), Vec::new());
+        let mut coupling = vec![Vec::new(); k_new];
+        for c in 0..n {
+            for p in new.col_ptr[c]..new.col_ptr[c + 1] {
+                let (r, v) = (new.row_idx[p], new_values[p]);
+                match (r < n_old, c < n_old) {
+                    (true, true) => {
+                        let d = v - old_value(r, c);
+                        let scale = (diagonal_of[r] * diagonal_of[c]).abs().sqrt();
+                        if d != 0.0 && d.abs() > tol * scale {
+                            e.push((r, c, d));
+                        }
+                    }
+                    (false, true) => coupling[r - n_old].push((c, v)),
+                    (false, false) => {
+                        let d = if r == c { 0.0 } else { v };
+                        if d != 0.0 {
+                            c_minus_d.push((r - n_old, c - n_old, d));
+                        }
+                    }
+                    (true, false) => unreachable!("lower triangle"),
+                }
+            }
+        }
+        // Old entries gone from the new pattern.
+        for c in 0..n_old {
+            for p in old.col_ptr[c]..old.col_ptr[c + 1] {
+                let r = old.row_idx[p];
+                if new.position(r, c).is_none() && old_values[p] != 0.0 {
+                    e.push((r, c, -old_values[p]));
+                }
+            }
+        }
+        let mut changed: Vec<usize> = e.iter().flat_map(|&(r, c, _)| [r, c]).collect();
+        changed.sort_unstable();
+        changed.dedup();
+        let s = changed.len();
+        let k = s + 2 * k_new;
+        let slot = |eq: usize| changed.binary_search(&eq).expect("changed");
+        let mut w = nalgebra::DMatrix::<f64>::zeros(k, k);
+        for &(r, c, d) in &e {
+            let (i, j) = (slot(r), slot(c));
+            w[(i, j)] += d;
+            if i != j {
+                w[(j, i)] += d;
+            }
+        }
+        for j in 0..k_new {
+            w[(s + j, s + k_new + j)] = 1.0;
+            w[(s + k_new + j, s + j)] = 1.0;
+        }
+        for &(r, c, d) in &c_minus_d {
+            let (i, j) = (s + k_new + r, s + k_new + c);
+            w[(i, j)] += d;
+            if i != j {
+                w[(j, i)] += d;
+            }
+        }
+        let mut z = nalgebra::DMatrix::<f64>::zeros(n, k);
+        let mut col = vec![0.0; n_old];
+        for j in 0..s + k_new {
+            col.fill(0.0);
+            if j < s {
+                col[changed[j]] = 1.0;
+            } else {
+                for &(r, v) in &coupling[j - s] {
+                    col[r] = v;
+                }
+            }
+            chol.solve_in_place(&mut col);
+            z.view_mut((0, j), (n_old, 1)).copy_from_slice(&col);
+        }
+        for j in 0..k_new {
+            z[(n_old + j, s + k_new + j)] = 1.0 / diagonal[j];
+        }
+        let mut solver = BorderedSolve {
+            n_old,
+            changed,
+            coupling,
+            diagonal,
+            z,
+            w,
+            lu: None,
+            old: vec![0.0; n_old],
+        };
+        if k > 0 {
+            let mut g = nalgebra::DMatrix::<f64>::zeros(k, k);
+            for j in 0..k {
+                let t = solver.border_of(solver.z.column(j).as_slice());
+                g.set_column(j, &t);
+            }
+            solver.lu = Some((nalgebra::DMatrix::<f64>::identity(k, k) + &solver.w * g).lu());
+        }
+        Some(solver)
+    }
+
+    /// Uᵀ x.
+    fn border_of(&self, x: &[f64]) -> nalgebra::DVector<f64> {
+        let (s, k_new) = (self.changed.len(), self.coupling.len());
+        nalgebra::DVector::from_fn(s + 2 * k_new, |i, _| {
+            if i < s {
+                x[self.changed[i]]
+            } else if i < s + k_new {
+                self.coupling[i - s].iter().map(|&(r, v)| v * x[r]).sum()
+            } else {
+                x[self.n_old + i - s - k_new]
+            }
+        })
+    }
+
+    /// Size of the border (columns of U: changed old, coupling and new equations).
+    pub fn border(&self) -> usize {
+        self.w.nrows()
+    }
+
+    /// Solves on the old factor per event: changed old equations + new ones.
+    pub fn event_solves(&self) -> usize {
+        self.changed.len() + self.coupling.len()
+    }
+
+    /// Solves A x = b in place (b ← x) on the old factor `chol`.
+    pub fn solve_in_place(&mut self, chol: &mut Cholesky, b: &mut [f64]) {
+        let n_old = self.n_old;
+        self.old.copy_from_slice(&b[..n_old]);
+        chol.solve_in_place(&mut self.old);
+        b[..n_old].copy_from_slice(&self.old);
+        for (x, d) in b[n_old..].iter_mut().zip(&self.diagonal) {
+            *x /= d;
+        }
+        let Some(lu) = &self.lu else {
+            return;
+        };
+        let t = self.border_of(b);
+        let s = lu
+            .solve(&(&self.w * t))
+            .unwrap_or_else(|| nalgebra::DVector::zeros(self.w.nrows()));
+        let zs = &self.z * s;
+        for (x, v) in b.iter_mut().zip(zs.iter()) {
+            *x -= v;
+        }
+    }
+}
+
+/// K + c M on a model's pattern (linear stiffness at rest, consistent mass):
+/// the shape of K_eff a linear Newmark step factorises, for the bordered-solve
+/// test and bench.
+pub fn stiffness_plus_mass(model: &Model, c: f64) -> Vec<f64> {
+    use crate::assembly::{evaluate, Request, Workspace};
+    let mut k = vec![0.0; model.pattern.nnz()];
+    let mut f = vec![0.0; model.n_dofs()];
+    let d = vec![0.0; model.n_dofs()];
+    evaluate(
+        model,
+        &d,
+        &mut Rotations::identity(model),
+        &mut Workspace::new(model),
+        Request {
+            forces: Some(&mut f),
+            tangent: Some(&mut k),
+            update_rotations: false,
+            exact_tangent: false,
+        },
+    );
+    if let Some(m) = &model.consistent_mass {
+        for (kv, mv) in k.iter_mut().zip(m) {
+            *kv += c * mv;
+        }
+    }
+    k
 }
 
 #[cfg(test)]

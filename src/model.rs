@@ -35,6 +35,10 @@ pub enum ModelError {
     DegenerateElement { element: usize, volume: f64 },
     #[error("the model has {0} DOFs, more than this solver indexes")]
     TooLarge(usize),
+    #[error(
+        "a model with a body force beyond gravity cannot be updated at a cut event: build it again"
+    )]
+    BodyForceUpdate,
 }
 
 /// A prescribed value for one global DOF.
@@ -113,6 +117,11 @@ pub struct Model {
     pub material: Material,
     pub lame: Lame,
     pub formulation: Formulation,
+    /// How it was integrated, its gravity, and whether it has a body force
+    /// beyond gravity (what [`Model::update_cut`] integrates changed elements with).
+    pub integration: Integration,
+    pub gravity: Option<Vector3<f64>>,
+    pub body_force: bool,
     pub cut: Option<CutSetup>,
     /// Number of shape functions (nodes + enriched nodes).
     pub n_shape: usize,
@@ -146,13 +155,6 @@ pub struct Model {
     pub mid_edge: Vec<Option<[u32; 2]>>,
 }
 
-/// An integration cell of an element: a (sub-)tetrahedron on one side of the cut.
-struct Cell {
-    vertices: [Point3<f64>; 4],
-    /// +1 / −1 above / below the cut, 0 for an element without enrichment.
-    side: i8,
-}
-
 impl Model {
     pub fn n_dofs(&self) -> usize {
         3 * self.n_shape
@@ -181,6 +183,13 @@ impl Model {
     }
 
     /// As [`Model::build`], choosing how Tet4 elements are integrated.
+    ///
+    /// In named steps: per element, [`element_cells`] (its shape functions
+    /// and integration cells, each cell's volume computed once) and
+    /// [`Integrator::block`] (one walk over those cells: integration groups,
+    /// loads, mass); then [`number_dofs`] (prescribed DOFs eliminated),
+    /// [`pattern_and_scatter`], the boundary tractions and the consistent
+    /// mass on the pattern.
     pub fn build_with(
         input: ModelInput<'_>,
         integration: Integration,
@@ -196,443 +205,67 @@ impl Model {
             tractions,
             need_mass,
         } = input;
-        let kind = mesh.kind;
-        let n_nodes = mesh.n_nodes();
-        let n_enriched = cut.as_ref().map_or(0, |c| c.n_enriched);
-        let n_tip = cut.as_ref().map_or(0, |c| c.n_tip);
-        let n_shape = n_nodes + n_enriched + N_BRANCH * n_tip;
-        if 3 * n_shape >= NONE as usize {
-            return Err(ModelError::TooLarge(3 * n_shape));
-        }
+        let n_shape = shape_count(&mesh, cut.as_ref())?;
         let mut shape_ref: Vec<Vector3<f64>> = mesh.nodes.iter().map(|p| p.coords).collect();
         shape_ref.resize(n_shape, Vector3::zeros());
-
-        let lame = Lame::from(material);
-        let rho = material.density;
-        let nn = kind.nodes();
-        let stiffness_rule = quadrature::rule(match (kind, integration) {
-            (ElementKind::Tet4, Integration::Grouped) => 1,
-            _ => 2,
-        });
-        // Gravity is constant (degree = shape degree); a varying body force gets degree 5.
-        let load_rule = if body_force.is_some() {
-            quadrature::rule(5)
-        } else {
-            stiffness_rule
+        let integrator = Integrator {
+            mesh: &mesh,
+            rho: material.density,
+            integration,
+            gravity,
+            body_force,
+            need_mass,
         };
-        let mass_rule = quadrature::rule(match kind {
-            ElementKind::Tet4 => 2,
-            ElementKind::Tet10 => 4,
-        });
-
-        let mut elements = Vec::with_capacity(mesh.n_elements());
-        let mut shape_ids: Vec<u32> = Vec::with_capacity(mesh.cells.len());
-        let mut groups = Vec::new();
-        let mut group_element = Vec::new();
-        let mut grads = Vec::new();
-        let mut load = vec![0.0; 3 * n_shape];
-        let mut lumped = need_mass.then(|| vec![0.0; n_shape]);
-        let mut coupling = need_mass.then(|| vec![0.0; n_enriched]);
-        // Element-local consistent mass entries (shape a, shape b, value), for the optional consistent mass.
-        let mut mass_entries: Vec<(Range<usize>, Vec<f64>)> = Vec::new();
-
-        let mut scatter_len = 0usize;
-        let mut nvals = [0.0; 10];
-        let mut ngrads = [Vector3::zeros(); 10];
+        let mut flat = FlatElements::with_capacity(mesh.n_elements(), mesh.cells.len());
+        let mut globals = Globals::new(n_shape, cut.as_ref(), need_mass);
+        let mut masses = Vec::with_capacity(if need_mass { mesh.n_elements() } else { 0 });
         for e in 0..mesh.n_elements() {
-            let conn = mesh.element(e);
-            let verts = mesh.vertex_points(e);
-            let volume = tet_volume(&verts);
-            let dl = barycentric_gradients(&verts)
-                .filter(|_| volume > 0.0)
-                .ok_or(ModelError::DegenerateElement { element: e, volume })?;
-
-            // Shape functions: the element's nodes, then its enriched nodes.
-            let first = shape_ids.len();
-            shape_ids.extend(conn.iter().map(|&i| i as u32));
-            let mut enr_local: Vec<usize> = Vec::new();
-            let mut cells: Vec<Cell> = Vec::new();
-            let mut node_side = [0i8; 10];
-            let element_cut = cut.as_ref().map(|c| &c.elements[e]);
-            match (cut.as_ref(), element_cut) {
-                (Some(c), Some(ElementCut::Cut { sub_tets, .. })) => {
-                    for (k, &i) in conn.iter().enumerate() {
-                        node_side[k] = c.node_side[i];
-                        if let Some(j) = c.enriched[i] {
-                            enr_local.push(k);
-                            shape_ids.push((n_nodes + j) as u32);
-                        }
-                    }
-                    cells.extend(sub_tets.iter().map(|s| Cell {
-                        vertices: s.vertices,
-                        side: s.side,
-                    }));
-                }
-                (Some(c), Some(ElementCut::Touched { side })) => {
-                    for (k, &i) in conn.iter().enumerate() {
-                        node_side[k] = c.node_side[i];
-                        if let Some(j) = c.enriched[i] {
-                            if psi(*side, c.node_side[i]) != 0.0 {
-                                enr_local.push(k);
-                                shape_ids.push((n_nodes + j) as u32);
-                            }
-                        }
-                    }
-                    cells.push(Cell {
-                        vertices: verts,
-                        side: *side,
-                    });
-                }
-                _ => cells.push(Cell {
-                    vertices: verts,
-                    side: 0,
-                }),
-            }
-            // Elements holding tip-enriched nodes: one group per quadrature point.
-            if let Some(shapes) = cut
-                .as_ref()
-                .and_then(|c| ElementShapes::new(&mesh, c, e, &dl, enr_local.clone()))
-            {
-                shape_ids.extend(shapes.tip_shape_ids(n_nodes + n_enriched));
-                let m = shape_ids.len() - first;
-                let ids = &shape_ids[first..];
-                let group_start = groups.len();
-                let mut me = vec![0.0; m * m];
-                let mut vals = vec![0.0; m];
-                let mut gr = vec![Vector3::zeros(); m];
-                for cell in &cells {
-                    let (mut int_n, mut int_n2) = ([0.0; 10], [0.0; 10]);
-                    let cell_volume = tet_volume(&cell.vertices);
-                    if cell_volume <= 0.0 {
-                        continue;
-                    }
-                    for q in shapes.cell_rule(&cell.vertices) {
-                        let bary = crate::mesh::barycentric(&verts, &q.x).unwrap_or([0.25; 4]);
-                        let w = q.weight;
-                        shapes.eval(&bary, cell.side, &mut vals, &mut gr);
-                        groups.push(Group {
-                            weight: w,
-                            grads: grads.len() as u32,
-                        });
-                        group_element.push(e as u32);
-                        grads.extend_from_slice(&gr);
-                        if gravity.is_some() || body_force.is_some() {
-                            let mut f = gravity.map_or(Vector3::zeros(), |g| g * rho);
-                            if let Some(bf) = body_force {
-                                f += bf(&q.x);
-                            }
-                            for (a, &v) in vals.iter().enumerate() {
-                                let sid = ids[a] as usize;
-                                for c in 0..3 {
-                                    load[3 * sid + c] += w * f[c] * v;
-                                }
-                            }
-                        }
-                        if need_mass {
-                            for a in 0..m {
-                                for b in 0..m {
-                                    me[a * m + b] += rho * w * vals[a] * vals[b];
-                                }
-                            }
-                            for k in 0..nn {
-                                int_n[k] += w * vals[k];
-                                int_n2[k] += w * vals[k] * vals[k];
-                            }
-                        }
-                    }
-                    if let (Some(lumped), Some(coupling)) = (lumped.as_mut(), coupling.as_mut()) {
-                        let share = lump_cell_mass(kind, rho, cell_volume, &int_n, &int_n2);
-                        for k in 0..nn {
-                            lumped[ids[k] as usize] += share[k];
-                        }
-                        for (j, &k) in shapes.heaviside.iter().enumerate() {
-                            let p = if cell.side == 0 {
-                                0.0
-                            } else {
-                                psi(cell.side, node_side[k])
-                            };
-                            let enriched = ids[nn + j] as usize;
-                            lumped[enriched] += p * p * share[k];
-                            coupling[enriched - n_nodes] += p * share[k];
-                        }
-                    }
-                }
-                if let Some(lumped) = lumped.as_mut() {
-                    // Tip DOFs: the diagonal of the consistent mass (no coupling).
-                    for a in nn + shapes.heaviside.len()..m {
-                        lumped[ids[a] as usize] += me[a * m + a];
-                    }
-                }
-                if need_mass {
-                    mass_entries.push((first..first + m, me));
-                }
-                elements.push(ElementData {
-                    shapes: first..first + m,
-                    groups: group_start..groups.len(),
-                    scatter: scatter_len,
-                });
-                scatter_len += 9 * m * m;
-                continue;
-            }
-            let m = shape_ids.len() - first;
-            let psi_of = |cell: &Cell, k: usize| -> f64 {
-                if cell.side == 0 {
-                    0.0
-                } else {
-                    psi(cell.side, node_side[k])
-                }
-            };
-
-            // Integration groups: per side for Tet4 (strain constant on a side),
-            // per quadrature point for Tet10.
-            let group_start = groups.len();
-            let mut side_group: [Option<usize>; 3] = [None; 3];
-            for cell in &cells {
-                let cell_volume = tet_volume(&cell.vertices);
-                if cell_volume <= 0.0 {
-                    continue;
-                }
-                for q in stiffness_rule {
-                    let (bary, w) = map_point(&verts, &cell.vertices, q, cell_volume);
-                    shape_gradients(kind, &bary, &dl, &mut ngrads);
-                    let grouped = kind == ElementKind::Tet4 && integration == Integration::Grouped;
-                    let g = match (grouped, side_group[(cell.side + 1) as usize]) {
-                        (true, Some(g)) => g,
-                        _ => {
-                            let g = groups.len();
-                            groups.push(Group {
-                                weight: 0.0,
-                                grads: grads.len() as u32,
-                            });
-                            group_element.push(e as u32);
-                            grads.extend(std::iter::repeat_n(Vector3::zeros(), m));
-                            if grouped {
-                                side_group[(cell.side + 1) as usize] = Some(g);
-                            }
-                            g
-                        }
-                    };
-                    // For Tet4 all points of a side have the same gradients: store them once.
-                    let gstart = groups[g].grads as usize;
-                    if !grouped || groups[g].weight == 0.0 {
-                        grads[gstart..gstart + nn].copy_from_slice(&ngrads[..nn]);
-                        for (j, &k) in enr_local.iter().enumerate() {
-                            grads[gstart + nn + j] = ngrads[k] * psi_of(cell, k);
-                        }
-                    }
-                    groups[g].weight += w;
-                }
-                // Loads and mass: shape values on the cell.
-                let mut shape_val = vec![0.0; m];
-                if gravity.is_some() || body_force.is_some() {
-                    for q in load_rule {
-                        let (bary, w) = map_point(&verts, &cell.vertices, q, cell_volume);
-                        eval_shapes(
-                            kind,
-                            &bary,
-                            &enr_local,
-                            |k| psi_of(cell, k),
-                            &mut nvals,
-                            &mut shape_val,
-                        );
-                        let mut f = gravity.map_or(Vector3::zeros(), |g| g * rho);
-                        if let Some(bf) = body_force {
-                            let x = verts
-                                .iter()
-                                .zip(bary)
-                                .fold(Vector3::zeros(), |s, (p, l)| s + p.coords * l);
-                            f += bf(&Point3::from(x));
-                        }
-                        for (a, &phi) in shape_val.iter().enumerate() {
-                            let s = shape_ids[first + a] as usize;
-                            for c in 0..3 {
-                                load[3 * s + c] += w * f[c] * phi;
-                            }
-                        }
-                    }
-                }
-            }
-            let groups_range = group_start..groups.len();
-
+            let cells = element_cells(&mesh, cut.as_ref(), e)?;
+            let block = integrator.block(&cells, Some(&mut globals));
+            flat.push_block(e, &block);
             if need_mass {
-                // Consistent element mass M_ab = ρ ∫ φ_a φ_b (eq. 77–80), by cell quadrature.
-                let mut me = vec![0.0; m * m];
-                let mut shape_val = vec![0.0; m];
-                for cell in &cells {
-                    let cell_volume = tet_volume(&cell.vertices);
-                    if cell_volume <= 0.0 {
-                        continue;
-                    }
-                    for q in mass_rule {
-                        let (bary, w) = map_point(&verts, &cell.vertices, q, cell_volume);
-                        eval_shapes(
-                            kind,
-                            &bary,
-                            &enr_local,
-                            |k| psi_of(cell, k),
-                            &mut nvals,
-                            &mut shape_val,
-                        );
-                        for a in 0..m {
-                            for b in 0..m {
-                                me[a * m + b] += rho * w * shape_val[a] * shape_val[b];
-                            }
-                        }
-                    }
-                }
-                if let (Some(lumped), Some(coupling)) = (lumped.as_mut(), coupling.as_mut()) {
-                    for cell in &cells {
-                        let cell_volume = tet_volume(&cell.vertices);
-                        if cell_volume <= 0.0 {
-                            continue;
-                        }
-                        // ∫ N_k and ∫ N_k² over the cell (standard shape functions).
-                        let (mut int_n, mut int_n2) = ([0.0; 10], [0.0; 10]);
-                        for q in mass_rule {
-                            let (bary, w) = map_point(&verts, &cell.vertices, q, cell_volume);
-                            shape_values(kind, &bary, &mut nvals);
-                            for k in 0..nn {
-                                int_n[k] += w * nvals[k];
-                                int_n2[k] += w * nvals[k] * nvals[k];
-                            }
-                        }
-                        let share = lump_cell_mass(kind, rho, cell_volume, &int_n, &int_n2);
-                        for k in 0..nn {
-                            lumped[shape_ids[first + k] as usize] += share[k];
-                        }
-                        for (j, &k) in enr_local.iter().enumerate() {
-                            let p = psi_of(cell, k);
-                            let enriched = shape_ids[first + nn + j] as usize;
-                            lumped[enriched] += p * p * share[k];
-                            coupling[enriched - n_nodes] += p * share[k];
-                        }
-                    }
-                }
-                mass_entries.push((first..first + m, me));
-            }
-
-            elements.push(ElementData {
-                shapes: first..first + m,
-                groups: groups_range,
-                scatter: scatter_len,
-            });
-            scatter_len += 9 * m * m;
-        }
-
-        // DOF numbering with elimination of prescribed DOFs.
-        let mut equation = vec![0u32; 3 * n_shape];
-        let mut prescribed = Vec::new();
-        for &(node, comps) in &fixed {
-            for (c, v) in comps.iter().enumerate() {
-                if let Some(v) = v {
-                    let dof = 3 * node + c;
-                    if equation[dof] != NONE {
-                        equation[dof] = NONE;
-                        prescribed.push(Prescribed { dof, value: *v });
-                    }
-                }
+                masses.push(block.mass);
             }
         }
-        let mut n_free = 0usize;
-        for eq in equation.iter_mut() {
-            if *eq != NONE {
-                *eq = n_free as u32;
-                n_free += 1;
-            }
-        }
-
-        // Sparsity pattern of the free system and the element scatter maps.
-        let mut cols: Vec<Vec<usize>> = vec![Vec::new(); n_free];
-        for el in &elements {
-            let dofs = element_equations(&shape_ids[el.shapes.clone()], &equation);
-            for &r in &dofs {
-                if r == NONE {
-                    continue;
-                }
-                for &c in &dofs {
-                    if c != NONE && r >= c {
-                        cols[c as usize].push(r as usize);
-                    }
-                }
-            }
-        }
-        let pattern = Pattern::from_entries(n_free, cols);
-        let mut scatter = vec![NONE; scatter_len];
-        for el in &elements {
-            let dofs = element_equations(&shape_ids[el.shapes.clone()], &equation);
-            let n = dofs.len();
-            for (p, &r) in dofs.iter().enumerate() {
-                for (q, &c) in dofs.iter().enumerate() {
-                    if r != NONE && c != NONE && r >= c {
-                        let pos = pattern
-                            .position(r as usize, c as usize)
-                            .expect("pattern holds every element entry");
-                        scatter[el.scatter + p * n + q] = pos as u32;
-                    }
-                }
-            }
-        }
-
+        let (equation, prescribed, n_free) = number_dofs(n_shape, &fixed);
+        let (pattern, scatter) = pattern_and_scatter(&flat, &equation, n_free);
         // Boundary tractions: ∫ t φ_a over the selected faces (standard shapes only;
         // faces are of the uncut body).
         for t in tractions {
-            add_traction(&mesh, t, &mut load);
+            add_traction(&mesh, t, &mut globals.load);
         }
-
         let consistent_mass = need_mass.then(|| {
             let mut values = vec![0.0; pattern.nnz()];
-            for (el, (range, me)) in elements.iter().zip(&mass_entries) {
-                let m = range.len();
-                for a in 0..m {
-                    for b in 0..m {
-                        for c in 0..3 {
-                            let pos = scatter[el.scatter + (3 * a + c) * 3 * m + 3 * b + c];
-                            if pos != NONE {
-                                values[pos as usize] += me[a * m + b];
-                            }
-                        }
-                    }
-                }
+            for (el, me) in flat.elements.iter().zip(&masses) {
+                add_element_mass(el, me, &scatter, &mut values, 1.0);
             }
             values
         });
-
-        // Tet10 mid-nodes next to tip-enriched vertices: their edge (for node_displacement).
-        let mut mid_edge = Vec::new();
-        if let (ElementKind::Tet10, Some(c)) = (kind, cut.as_ref()) {
-            if c.n_tip > 0 {
-                mid_edge = vec![None; n_nodes];
-                for e in 0..mesh.n_elements() {
-                    let conn = mesh.element(e);
-                    for (k, &(a, b)) in TET10_EDGES.iter().enumerate() {
-                        if c.tip[conn[a]].is_some() || c.tip[conn[b]].is_some() {
-                            mid_edge[conn[4 + k]] = Some([conn[a] as u32, conn[b] as u32]);
-                        }
-                    }
-                }
-            }
-        }
+        let mid_edge = mid_edges(&mesh, cut.as_ref());
         Ok(Model {
+            lame: Lame::from(material),
             mesh,
             material,
-            lame,
             formulation,
+            integration,
+            gravity,
+            body_force: body_force.is_some(),
             cut,
             n_shape,
             shape_ref,
-            elements,
-            shape_ids,
-            groups,
-            grads,
-            group_element,
+            elements: flat.elements,
+            shape_ids: flat.shape_ids,
+            groups: flat.groups,
+            grads: flat.grads,
+            group_element: flat.group_element,
             equation,
             n_free,
             prescribed,
             pattern,
             scatter,
-            load,
-            lumped_mass: lumped,
-            lumped_coupling: coupling,
+            load: globals.load,
+            lumped_mass: globals.lumped,
+            lumped_coupling: globals.coupling,
             consistent_mass,
             mid_edge,
         })
@@ -711,6 +344,25 @@ impl Model {
             Some(ElementCut::Touched { side }) => *side,
             _ => 0,
         }
+    }
+
+    /// Values of element `e`'s shape functions ([`Model::element_shapes`]
+    /// order) at reference point `x`, on side `side` of the cut.
+    pub fn shape_values_at(&self, e: usize, x: &Point3<f64>, side: i8) -> Vec<f64> {
+        let verts = self.mesh.vertex_points(e);
+        let bary = crate::mesh::barycentric(&verts, x).unwrap_or([0.25; 4]);
+        let m = self.elements[e].shapes.len();
+        let mut vals = vec![0.0; m];
+        match &self.cut {
+            Some(c) => {
+                let dl = barycentric_gradients(&verts).unwrap_or([Vector3::zeros(); 4]);
+                let mut grads = vec![Vector3::zeros(); m];
+                let shapes = ElementShapes::any(&self.mesh, c, e, &dl, self.heaviside_local(e));
+                shapes.eval(&bary, self.element_side(e, side), &mut vals, &mut grads);
+            }
+            None => shape_values(self.mesh.kind, &bary, &mut vals),
+        }
+        vals
     }
 
     /// Displacement u_h and its gradient ∇u_h at reference point `x` of
@@ -1117,6 +769,660 @@ fn add_traction(mesh: &TetMesh, t: &Traction, load: &mut [f64]) {
     }
 }
 
+// ---------------------------------------------------------------------------
+// The named steps of [`Model::build_with`] (and of [`Model::update_cut`]).
+
+/// Number of shape functions of a mesh with a cut: nodes, Heaviside-enriched
+/// nodes, four branch functions per tip-enriched node.
+fn shape_count(mesh: &TetMesh, cut: Option<&CutSetup>) -> Result<usize, ModelError> {
+    let n_enriched = cut.map_or(0, |c| c.n_enriched);
+    let n_tip = cut.map_or(0, |c| c.n_tip);
+    let n_shape = mesh.n_nodes() + n_enriched + N_BRANCH * n_tip;
+    if 3 * n_shape >= NONE as usize {
+        return Err(ModelError::TooLarge(3 * n_shape));
+    }
+    Ok(n_shape)
+}
+
+/// An integration cell of an element: a (sub-)tetrahedron on one side of the cut.
+struct Cell {
+    vertices: [Point3<f64>; 4],
+    /// +1 / −1 above / below the cut, 0 for an element without enrichment.
+    side: i8,
+    /// Its volume (> 0: cells without volume are left out).
+    volume: f64,
+}
+
+/// Step 1 of the build for one element: its geometry, its shape functions
+/// (nodes, then Heaviside-enriched nodes, then tip functions) and its
+/// integration cells with their volumes.
+struct ElementCells {
+    verts: [Point3<f64>; 4],
+    dl: [Vector3<f64>; 4],
+    /// Global shape-function ids.
+    shape_ids: Vec<u32>,
+    /// Local nodes whose Heaviside shape functions the element holds.
+    heaviside: Vec<usize>,
+    node_side: [i8; 10],
+    cells: Vec<Cell>,
+    /// The point-by-point shapes of an element holding tip-enriched nodes.
+    tip: Option<ElementShapes>,
+}
+
+impl ElementCells {
+    /// ψ of local node `k` in `cell` (0 in an element without enrichment).
+    fn psi(&self, cell: &Cell, k: usize) -> f64 {
+        if cell.side == 0 {
+            0.0
+        } else {
+            psi(cell.side, self.node_side[k])
+        }
+    }
+}
+
+/// Step 1: the cells of element `e` (degenerate elements are refused).
+fn element_cells(
+    mesh: &TetMesh,
+    cut: Option<&CutSetup>,
+    e: usize,
+) -> Result<ElementCells, ModelError> {
+    let conn = mesh.element(e);
+    let verts = mesh.vertex_points(e);
+    let volume = tet_volume(&verts);
+    let dl = barycentric_gradients(&verts)
+        .filter(|_| volume > 0.0)
+        .ok_or(ModelError::DegenerateElement { element: e, volume })?;
+    let n_nodes = mesh.n_nodes();
+    let mut shape_ids: Vec<u32> = conn.iter().map(|&i| i as u32).collect();
+    let mut heaviside = Vec::new();
+    let mut node_side = [0i8; 10];
+    let mut cells = Vec::new();
+    let mut cell = |vertices: [Point3<f64>; 4], side: i8| {
+        let volume = tet_volume(&vertices);
+        if volume > 0.0 {
+            cells.push(Cell {
+                vertices,
+                side,
+                volume,
+            });
+        }
+    };
+    match (cut, cut.map(|c| &c.elements[e])) {
+        (Some(c), Some(ElementCut::Cut { sub_tets, .. })) => {
+            for (k, &i) in conn.iter().enumerate() {
+                node_side[k] = c.node_side[i];
+                if let Some(j) = c.enriched[i] {
+                    heaviside.push(k);
+                    shape_ids.push((n_nodes + j) as u32);
+                }
+            }
+            for s in sub_tets {
+                cell(s.vertices, s.side);
+            }
+        }
+        (Some(c), Some(ElementCut::Touched { side })) => {
+            for (k, &i) in conn.iter().enumerate() {
+                node_side[k] = c.node_side[i];
+                if let Some(j) = c.enriched[i] {
+                    if psi(*side, c.node_side[i]) != 0.0 {
+                        heaviside.push(k);
+                        shape_ids.push((n_nodes + j) as u32);
+                    }
+                }
+            }
+            cell(verts, *side);
+        }
+        _ => cell(verts, 0),
+    }
+    let tip = cut.and_then(|c| ElementShapes::new(mesh, c, e, &dl, heaviside.clone()));
+    if let (Some(shapes), Some(c)) = (&tip, cut) {
+        shape_ids.extend(shapes.tip_shape_ids(n_nodes + c.n_enriched));
+    }
+    Ok(ElementCells {
+        verts,
+        dl,
+        shape_ids,
+        heaviside,
+        node_side,
+        cells,
+        tip,
+    })
+}
+
+/// Step 2's result for one element: everything its cells contribute, in
+/// local shape order.
+struct ElementBlock {
+    shape_ids: Vec<u32>,
+    /// Local index of the first Heaviside shape function (nodes per element).
+    heaviside_start: usize,
+    /// Integration groups, `grads` relative to this block's gradients.
+    groups: Vec<Group>,
+    grads: Vec<Vector3<f64>>,
+    /// ∫ f φ_a (3 per shape function; empty without body force).
+    load: Vec<f64>,
+    /// Lumped mass per shape function, lumped u–a coupling per Heaviside
+    /// shape function, consistent mass (m × m); empty without mass.
+    lumped: Vec<f64>,
+    coupling: Vec<f64>,
+    mass: Vec<f64>,
+}
+
+/// What step 2 integrates with: the rules, loads and density of a build.
+struct Integrator<'a> {
+    mesh: &'a TetMesh,
+    rho: f64,
+    integration: Integration,
+    gravity: Option<Vector3<f64>>,
+    body_force: Option<&'a BodyForce>,
+    need_mass: bool,
+}
+
+impl Integrator<'_> {
+    fn has_load(&self) -> bool {
+        self.gravity.is_some() || self.body_force.is_some()
+    }
+
+    /// The body force per unit volume at `x`.
+    fn force(&self, x: &Point3<f64>) -> Vector3<f64> {
+        let mut f = self.gravity.map_or(Vector3::zeros(), |g| g * self.rho);
+        if let Some(bf) = self.body_force {
+            f += bf(x);
+        }
+        f
+    }
+
+    /// Step 2: one walk over the element's cells. With `direct` its load
+    /// and lumped mass go straight into those global vectors, point by point
+    /// as they are integrated (the build), else into the block's own (an update).
+    fn block(&self, cells: &ElementCells, direct: Option<&mut Globals>) -> ElementBlock {
+        let m = cells.shape_ids.len();
+        let mut block = ElementBlock {
+            shape_ids: cells.shape_ids.clone(),
+            heaviside_start: self.mesh.kind.nodes(),
+            groups: Vec::new(),
+            grads: Vec::new(),
+            load: if self.has_load() && direct.is_none() {
+                vec![0.0; 3 * m]
+            } else {
+                Vec::new()
+            },
+            lumped: Vec::new(),
+            coupling: Vec::new(),
+            mass: Vec::new(),
+        };
+        if self.need_mass {
+            if direct.is_none() {
+                block.lumped = vec![0.0; m];
+                block.coupling = vec![0.0; cells.heaviside.len()];
+            }
+            block.mass = vec![0.0; m * m];
+        }
+        let mut sink = Sink {
+            direct,
+            n_nodes: self.mesh.n_nodes(),
+        };
+        match &cells.tip {
+            Some(shapes) => self.tip_block(cells, shapes, &mut block, &mut sink),
+            None => self.standard_block(cells, &mut block, &mut sink),
+        }
+        block
+    }
+
+    /// Elements holding tip-enriched nodes: one group per quadrature point,
+    /// the rules of [`ElementShapes::cell_rule`].
+    fn tip_block(
+        &self,
+        cells: &ElementCells,
+        shapes: &ElementShapes,
+        block: &mut ElementBlock,
+        sink: &mut Sink<'_>,
+    ) {
+        let kind = self.mesh.kind;
+        let nn = kind.nodes();
+        let m = block.shape_ids.len();
+        let mut vals = vec![0.0; m];
+        let mut gr = vec![Vector3::zeros(); m];
+        for cell in &cells.cells {
+            let (mut int_n, mut int_n2) = ([0.0; 10], [0.0; 10]);
+            for q in shapes.cell_rule(&cell.vertices) {
+                let bary = crate::mesh::barycentric(&cells.verts, &q.x).unwrap_or([0.25; 4]);
+                let w = q.weight;
+                shapes.eval(&bary, cell.side, &mut vals, &mut gr);
+                block.groups.push(Group {
+                    weight: w,
+                    grads: block.grads.len() as u32,
+                });
+                block.grads.extend_from_slice(&gr);
+                if self.has_load() {
+                    let f = self.force(&q.x);
+                    for (a, &v) in vals.iter().enumerate() {
+                        for c in 0..3 {
+                            sink.load(block, a, c, w * f[c] * v);
+                        }
+                    }
+                }
+                if self.need_mass {
+                    for a in 0..m {
+                        for b in 0..m {
+                            block.mass[a * m + b] += self.rho * w * vals[a] * vals[b];
+                        }
+                    }
+                    for k in 0..nn {
+                        int_n[k] += w * vals[k];
+                        int_n2[k] += w * vals[k] * vals[k];
+                    }
+                }
+            }
+            if self.need_mass {
+                self.lump(cells, cell, &int_n, &int_n2, block, sink);
+            }
+        }
+        if self.need_mass {
+            // Tip DOFs: the diagonal of the consistent mass (no coupling).
+            for a in nn + cells.heaviside.len()..m {
+                let diagonal = block.mass[a * m + a];
+                sink.lumped(block, a, diagonal);
+            }
+        }
+    }
+
+    /// Elements without tip functions: per cell, the stiffness points
+    /// (grouped per side for Tet4: the strain is constant there), the load
+    /// points and the mass points.
+    fn standard_block(&self, cells: &ElementCells, block: &mut ElementBlock, sink: &mut Sink<'_>) {
+        let kind = self.mesh.kind;
+        let nn = kind.nodes();
+        let m = block.shape_ids.len();
+        let grouped = kind == ElementKind::Tet4 && self.integration == Integration::Grouped;
+        let stiffness_rule = quadrature::rule(if grouped { 1 } else { 2 });
+        // Gravity is constant (degree = shape degree); a varying body force gets degree 5.
+        let load_rule = if self.body_force.is_some() {
+            quadrature::rule(5)
+        } else {
+            stiffness_rule
+        };
+        let mass_rule = quadrature::rule(match kind {
+            ElementKind::Tet4 => 2,
+            ElementKind::Tet10 => 4,
+        });
+        let mut nvals = [0.0; 10];
+        let mut ngrads = [Vector3::zeros(); 10];
+        let mut shape_val = vec![0.0; m];
+        let mut side_group: [Option<usize>; 3] = [None; 3];
+        for cell in &cells.cells {
+            for q in stiffness_rule {
+                let (bary, w) = map_point(&cells.verts, &cell.vertices, q, cell.volume);
+                shape_gradients(kind, &bary, &cells.dl, &mut ngrads);
+                let g = match (grouped, side_group[(cell.side + 1) as usize]) {
+                    (true, Some(g)) => g,
+                    _ => {
+                        let g = block.groups.len();
+                        block.groups.push(Group {
+                            weight: 0.0,
+                            grads: block.grads.len() as u32,
+                        });
+                        block.grads.extend(std::iter::repeat_n(Vector3::zeros(), m));
+                        if grouped {
+                            side_group[(cell.side + 1) as usize] = Some(g);
+                        }
+                        g
+                    }
+                };
+                // For Tet4 all points of a side have the same gradients: store them once.
+                let gstart = block.groups[g].grads as usize;
+                if !grouped || block.groups[g].weight == 0.0 {
+                    block.grads[gstart..gstart + nn].copy_from_slice(&ngrads[..nn]);
+                    for (j, &k) in cells.heaviside.iter().enumerate() {
+                        block.grads[gstart + nn + j] = ngrads[k] * cells.psi(cell, k);
+                    }
+                }
+                block.groups[g].weight += w;
+            }
+            if self.has_load() {
+                for q in load_rule {
+                    let (bary, w) = map_point(&cells.verts, &cell.vertices, q, cell.volume);
+                    eval_shapes(
+                        kind,
+                        &bary,
+                        &cells.heaviside,
+                        |k| cells.psi(cell, k),
+                        &mut nvals,
+                        &mut shape_val,
+                    );
+                    let x = cells
+                        .verts
+                        .iter()
+                        .zip(bary)
+                        .fold(Vector3::zeros(), |s, (p, l)| s + p.coords * l);
+                    let f = self.force(&Point3::from(x));
+                    for (a, &phi) in shape_val.iter().enumerate() {
+                        for c in 0..3 {
+                            sink.load(block, a, c, w * f[c] * phi);
+                        }
+                    }
+                }
+            }
+            if self.need_mass {
+                // Consistent element mass M_ab = ρ ∫ φ_a φ_b (eq. 77–80), and
+                // ∫ N_k, ∫ N_k² over the cell for the lumped mass.
+                let (mut int_n, mut int_n2) = ([0.0; 10], [0.0; 10]);
+                for q in mass_rule {
+                    let (bary, w) = map_point(&cells.verts, &cell.vertices, q, cell.volume);
+                    eval_shapes(
+                        kind,
+                        &bary,
+                        &cells.heaviside,
+                        |k| cells.psi(cell, k),
+                        &mut nvals,
+                        &mut shape_val,
+                    );
+                    for a in 0..m {
+                        for b in 0..m {
+                            block.mass[a * m + b] += self.rho * w * shape_val[a] * shape_val[b];
+                        }
+                    }
+                    for k in 0..nn {
+                        int_n[k] += w * nvals[k];
+                        int_n2[k] += w * nvals[k] * nvals[k];
+                    }
+                }
+                self.lump(cells, cell, &int_n, &int_n2, block, sink);
+            }
+        }
+    }
+
+    /// Adds one cell's lumped mass (seed eq. 81–82, [`lump_cell_mass`]) to the block.
+    fn lump(
+        &self,
+        cells: &ElementCells,
+        cell: &Cell,
+        int_n: &[f64; 10],
+        int_n2: &[f64; 10],
+        block: &mut ElementBlock,
+        sink: &mut Sink<'_>,
+    ) {
+        let nn = self.mesh.kind.nodes();
+        let share = lump_cell_mass(self.mesh.kind, self.rho, cell.volume, int_n, int_n2);
+        for k in 0..nn {
+            sink.lumped(block, k, share[k]);
+        }
+        for (j, &k) in cells.heaviside.iter().enumerate() {
+            let p = cells.psi(cell, k);
+            sink.lumped(block, nn + j, p * p * share[k]);
+            sink.coupling(block, j, p * share[k]);
+        }
+    }
+}
+
+/// Where an element's load and lumped mass go as they are integrated: the
+/// global vectors (a build, so each DOF sums its terms in the same order as
+/// one global loop), or the block's own (an update adds or removes whole blocks).
+struct Sink<'g> {
+    direct: Option<&'g mut Globals>,
+    n_nodes: usize,
+}
+
+impl Sink<'_> {
+    fn load(&mut self, block: &mut ElementBlock, a: usize, c: usize, value: f64) {
+        match self.direct.as_deref_mut() {
+            Some(g) => g.load[3 * block.shape_ids[a] as usize + c] += value,
+            None => block.load[3 * a + c] += value,
+        }
+    }
+
+    fn lumped(&mut self, block: &mut ElementBlock, a: usize, value: f64) {
+        match self.direct.as_deref_mut() {
+            Some(g) => {
+                if let Some(l) = g.lumped.as_mut() {
+                    l[block.shape_ids[a] as usize] += value;
+                }
+            }
+            None => block.lumped[a] += value,
+        }
+    }
+
+    /// Coupling of the block's `j`-th Heaviside shape function.
+    fn coupling(&mut self, block: &mut ElementBlock, j: usize, value: f64) {
+        let n_nodes = self.n_nodes;
+        match self.direct.as_deref_mut() {
+            Some(g) => {
+                if let Some(cp) = g.coupling.as_mut() {
+                    cp[block.shape_ids[block.heaviside_start + j] as usize - n_nodes] += value;
+                }
+            }
+            None => block.coupling[j] += value,
+        }
+    }
+}
+
+/// The per-element flat arrays of a model, appended element by element.
+struct FlatElements {
+    elements: Vec<ElementData>,
+    shape_ids: Vec<u32>,
+    groups: Vec<Group>,
+    grads: Vec<Vector3<f64>>,
+    group_element: Vec<u32>,
+    scatter_len: usize,
+}
+
+impl FlatElements {
+    fn with_capacity(n_elements: usize, n_shapes: usize) -> FlatElements {
+        FlatElements {
+            elements: Vec::with_capacity(n_elements),
+            shape_ids: Vec::with_capacity(n_shapes),
+            groups: Vec::with_capacity(n_elements),
+            grads: Vec::with_capacity(n_shapes),
+            group_element: Vec::with_capacity(n_elements),
+            scatter_len: 0,
+        }
+    }
+
+    /// Appends element `e`'s shape functions, groups and gradients.
+    fn push(&mut self, e: usize, shape_ids: &[u32], groups: &[Group], grads: &[Vector3<f64>]) {
+        let m = shape_ids.len();
+        let first = self.shape_ids.len();
+        self.shape_ids.extend_from_slice(shape_ids);
+        let group_start = self.groups.len();
+        let offset = self.grads.len() as u32 - groups.first().map_or(0, |g| g.grads);
+        self.groups.extend(groups.iter().map(|g| Group {
+            weight: g.weight,
+            grads: g.grads + offset,
+        }));
+        self.grads.extend_from_slice(grads);
+        self.group_element
+            .extend(std::iter::repeat_n(e as u32, groups.len()));
+        self.elements.push(ElementData {
+            shapes: first..first + m,
+            groups: group_start..self.groups.len(),
+            scatter: self.scatter_len,
+        });
+        self.scatter_len += 9 * m * m;
+    }
+
+    fn push_block(&mut self, e: usize, block: &ElementBlock) {
+        self.push(e, &block.shape_ids, &block.groups, &block.grads);
+    }
+}
+
+/// The global vectors the element blocks add into: load, lumped mass and coupling.
+struct Globals {
+    load: Vec<f64>,
+    lumped: Option<Vec<f64>>,
+    coupling: Option<Vec<f64>>,
+}
+
+impl Globals {
+    fn new(n_shape: usize, cut: Option<&CutSetup>, need_mass: bool) -> Globals {
+        let n_enriched = cut.map_or(0, |c| c.n_enriched);
+        Globals {
+            load: vec![0.0; 3 * n_shape],
+            lumped: need_mass.then(|| vec![0.0; n_shape]),
+            coupling: need_mass.then(|| vec![0.0; n_enriched]),
+        }
+    }
+
+    /// Adds `sign` × the block's load and lumped mass; shape ids [`NONE`] are skipped.
+    fn add_signed(&mut self, block: &ElementBlock, sign: f64, n_nodes: usize) {
+        let ids = &block.shape_ids;
+        for (a, f) in block.load.chunks_exact(3).enumerate() {
+            if ids[a] == NONE {
+                continue;
+            }
+            let s = ids[a] as usize;
+            for c in 0..3 {
+                self.load[3 * s + c] += sign * f[c];
+            }
+        }
+        if let (Some(lumped), Some(coupling)) = (self.lumped.as_mut(), self.coupling.as_mut()) {
+            for (a, &mass) in block.lumped.iter().enumerate() {
+                if ids[a] != NONE {
+                    lumped[ids[a] as usize] += sign * mass;
+                }
+            }
+            for (j, &c) in block.coupling.iter().enumerate() {
+                let s = ids[block.heaviside_start + j];
+                if s != NONE {
+                    coupling[s as usize - n_nodes] += sign * c;
+                }
+            }
+        }
+    }
+
+    fn add(&mut self, block: &ElementBlock, n_nodes: usize) {
+        self.add_signed(block, 1.0, n_nodes);
+    }
+
+    fn sub_mapped(&mut self, block: &ElementBlock, n_nodes: usize) {
+        self.add_signed(block, -1.0, n_nodes);
+    }
+}
+
+/// Step 3: global DOF → equation number, prescribed DOFs eliminated ([`NONE`]).
+fn number_dofs(
+    n_shape: usize,
+    fixed: &[(usize, [Option<f64>; 3])],
+) -> (Vec<u32>, Vec<Prescribed>, usize) {
+    let mut equation = vec![0u32; 3 * n_shape];
+    let mut prescribed = Vec::new();
+    for &(node, comps) in fixed {
+        for (c, v) in comps.iter().enumerate() {
+            if let Some(v) = v {
+                let dof = 3 * node + c;
+                if equation[dof] != NONE {
+                    equation[dof] = NONE;
+                    prescribed.push(Prescribed { dof, value: *v });
+                }
+            }
+        }
+    }
+    let mut n_free = 0usize;
+    for eq in equation.iter_mut() {
+        if *eq != NONE {
+            *eq = n_free as u32;
+            n_free += 1;
+        }
+    }
+    (equation, prescribed, n_free)
+}
+
+/// Adds the lower-triangle entries of an element with equations `dofs` to `cols`.
+fn push_entries(dofs: &[u32], cols: &mut [Vec<usize>]) {
+    for &r in dofs {
+        if r == NONE {
+            continue;
+        }
+        for &c in dofs {
+            if c != NONE && r >= c {
+                cols[c as usize].push(r as usize);
+            }
+        }
+    }
+}
+
+/// Writes the CSC positions of element `el`'s (3m)² entries into `scatter`.
+fn element_scatter(
+    el: &ElementData,
+    shapes: &[u32],
+    equation: &[u32],
+    pattern: &Pattern,
+    scatter: &mut [u32],
+) {
+    let dofs = element_equations(shapes, equation);
+    let n = dofs.len();
+    for (p, &r) in dofs.iter().enumerate() {
+        for (q, &c) in dofs.iter().enumerate() {
+            scatter[el.scatter + p * n + q] = if r != NONE && c != NONE && r >= c {
+                pattern
+                    .position(r as usize, c as usize)
+                    .expect("pattern holds every element entry") as u32
+            } else {
+                NONE
+            };
+        }
+    }
+}
+
+/// Step 4: the lower-triangular pattern of the free system and each element's scatter map.
+fn pattern_and_scatter(
+    flat: &FlatElements,
+    equation: &[u32],
+    n_free: usize,
+) -> (Pattern, Vec<u32>) {
+    let mut cols: Vec<Vec<usize>> = vec![Vec::new(); n_free];
+    for el in &flat.elements {
+        let dofs = element_equations(&flat.shape_ids[el.shapes.clone()], equation);
+        push_entries(&dofs, &mut cols);
+    }
+    let pattern = Pattern::from_entries(n_free, cols);
+    let mut scatter = vec![NONE; flat.scatter_len];
+    for el in &flat.elements {
+        element_scatter(
+            el,
+            &flat.shape_ids[el.shapes.clone()],
+            equation,
+            &pattern,
+            &mut scatter,
+        );
+    }
+    (pattern, scatter)
+}
+
+/// Adds `sign` × an element's consistent mass `me` (m × m, per shape
+/// function; the same for the three components) to the values on the pattern.
+fn add_element_mass(el: &ElementData, me: &[f64], scatter: &[u32], values: &mut [f64], sign: f64) {
+    let m = el.shapes.len();
+    for a in 0..m {
+        for b in 0..m {
+            for c in 0..3 {
+                let pos = scatter[el.scatter + (3 * a + c) * 3 * m + 3 * b + c];
+                if pos != NONE {
+                    values[pos as usize] += sign * me[a * m + b];
+                }
+            }
+        }
+    }
+}
+
+/// Tet10 mid-nodes next to tip-enriched vertices: their edge (for
+/// [`Model::node_displacement`]); empty otherwise.
+fn mid_edges(mesh: &TetMesh, cut: Option<&CutSetup>) -> Vec<Option<[u32; 2]>> {
+    let mut mid_edge = Vec::new();
+    if let (ElementKind::Tet10, Some(c)) = (mesh.kind, cut) {
+        if c.n_tip > 0 {
+            mid_edge = vec![None; mesh.n_nodes()];
+            for e in 0..mesh.n_elements() {
+                let conn = mesh.element(e);
+                for (k, &(a, b)) in TET10_EDGES.iter().enumerate() {
+                    if c.tip[conn[a]].is_some() || c.tip[conn[b]].is_some() {
+                        mid_edge[conn[4 + k]] = Some([conn[a] as u32, conn[b] as u32]);
+                    }
+                }
+            }
+        }
+    }
+    mid_edge
+}
+
 impl Model {
     /// Parts of the body held by no Dirichlet condition, described for an error message.
     ///
@@ -1204,5 +1510,428 @@ impl Model {
 
     fn prescribed_nodes_contains(&self, node: usize) -> bool {
         (0..3).any(|c| self.equation[3 * node + c] == NONE)
+    }
+}
+
+// ---------------------------------------------------------------------------
+// A cut event: the model of a grown cut from the model of the old one.
+
+/// What [`Model::update_cut`] kept and recomputed.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct UpdateStats {
+    /// Elements integrated again (their cut, enrichment or front changed).
+    pub changed_elements: usize,
+    /// Free equations appended, and old ones dropped (tip → Heaviside).
+    pub new_equations: usize,
+    pub dropped_equations: usize,
+}
+
+/// Whether element `e` has the same shape functions and integration cells
+/// under the cut set-ups `a` and `b` (its block of the model is then the same):
+/// the same classification and sub-tets, the same Heaviside-enriched nodes
+/// on the same sides, the same tip-enriched nodes and, where it holds one,
+/// the same level sets at its nodes.
+pub fn same_element_model(
+    mesh: &TetMesh,
+    a: Option<&CutSetup>,
+    b: Option<&CutSetup>,
+    e: usize,
+) -> bool {
+    let conn = mesh.element(e);
+    let uncut = ElementCut::Uncut;
+    let (ea, eb) = (
+        a.map_or(&uncut, |c| &c.elements[e]),
+        b.map_or(&uncut, |c| &c.elements[e]),
+    );
+    if !same_element_cut(ea, eb) {
+        return false;
+    }
+    let tip = |c: Option<&CutSetup>, i: usize| {
+        c.is_some_and(|c| c.tip.get(i).copied().flatten().is_some())
+    };
+    let has_tip = |c: Option<&CutSetup>| conn.iter().any(|&i| tip(c, i));
+    let (ta, tb) = (has_tip(a), has_tip(b));
+    if ta != tb {
+        return false;
+    }
+    if matches!(ea, ElementCut::Uncut) && !ta {
+        // Its shape functions are its nodes' whatever the enrichment around it.
+        return true;
+    }
+    let enriched = |c: Option<&CutSetup>, i: usize| c.is_some_and(|c| c.enriched[i].is_some());
+    let side = |c: Option<&CutSetup>, i: usize| c.map_or(0, |c| c.node_side[i]);
+    for &i in conn {
+        if enriched(a, i) != enriched(b, i)
+            || (enriched(a, i) && side(a, i) != side(b, i))
+            || tip(a, i) != tip(b, i)
+        {
+            return false;
+        }
+    }
+    if ta {
+        let (Some(a), Some(b)) = (a, b) else {
+            return false;
+        };
+        let level = |c: &CutSetup, i: usize| {
+            (
+                c.phi[i].to_bits(),
+                c.front_level.get(i).map(|x| x.to_bits()),
+            )
+        };
+        if conn
+            .iter()
+            .any(|&i| level(a, i) != level(b, i) || a.node_side[i] != b.node_side[i])
+        {
+            return false;
+        }
+    }
+    true
+}
+
+/// Whether two element classifications are the same, sub-tets bit for bit.
+pub fn same_element_cut(a: &ElementCut, b: &ElementCut) -> bool {
+    match (a, b) {
+        (ElementCut::Uncut, ElementCut::Uncut) => true,
+        (ElementCut::Touched { side: x }, ElementCut::Touched { side: y }) => x == y,
+        (
+            ElementCut::Cut {
+                sub_tets: s,
+                partial: p,
+            },
+            ElementCut::Cut {
+                sub_tets: t,
+                partial: q,
+            },
+        ) => {
+            p == q
+                && s.len() == t.len()
+                && s.iter()
+                    .zip(t)
+                    .all(|(x, y)| x.side == y.side && x.vertices == y.vertices)
+        }
+        _ => false,
+    }
+}
+
+/// Shape id in `new` of each shape function of `old` (the same node, the
+/// same kind of enrichment, the same branch), [`NONE`] where it is gone.
+fn shape_map(
+    n_nodes: usize,
+    old: Option<&CutSetup>,
+    new: Option<&CutSetup>,
+    n_old: usize,
+) -> Vec<u32> {
+    let mut map = vec![NONE; n_old];
+    for (i, m) in map.iter_mut().enumerate().take(n_nodes) {
+        *m = i as u32;
+    }
+    let (Some(o), Some(n)) = (old, new) else {
+        return map;
+    };
+    for i in 0..n_nodes {
+        if let (Some(jo), Some(jn)) = (o.enriched[i], n.enriched[i]) {
+            map[n_nodes + jo] = (n_nodes + jn) as u32;
+        }
+        if let (Some(to), Some(tn)) = (
+            o.tip.get(i).copied().flatten(),
+            n.tip.get(i).copied().flatten(),
+        ) {
+            for b in 0..N_BRANCH {
+                map[n_nodes + o.n_enriched + N_BRANCH * to + b] =
+                    (n_nodes + n.n_enriched + N_BRANCH * tn + b) as u32;
+            }
+        }
+    }
+    map
+}
+
+impl Model {
+    /// The model of the same mesh, fixes and loads with the cut set-up
+    /// `cut` in place of its own: a cut event of a progressive cut.
+    ///
+    /// Only the elements whose shape functions or cells changed
+    /// ([`same_element_model`]: newly cut or touched, crossed by the moved
+    /// front, holding a node whose enrichment changed) are integrated again;
+    /// the others keep their groups and gradients (the standard block K_uu of
+    /// an element does not change when it is cut: METHODS.md, "Blades").
+    /// Loads, lumped and consistent mass are the old ones with the changed
+    /// elements' old contributions taken out and their new ones added. The
+    /// shape functions are numbered as [`Model::build`] numbers them, so
+    /// [`crate::blade::map_state`] applies; the *equations* of DOFs that
+    /// exist before and after keep their numbers (compacted in order where
+    /// DOFs disappear), new ones are appended, and the pattern is the old
+    /// one (entries of gone DOFs left out) with the changed elements'
+    /// entries added. It equals a full build up to round-off (the test
+    /// `incremental_update_equals_a_full_build_at_every_event`), except that
+    /// the pattern may keep entries a changed element no longer couples
+    /// (zero values).
+    ///
+    /// A model built with a body force beyond gravity cannot be updated (it
+    /// does not keep the function): [`ModelError::BodyForceUpdate`].
+    pub fn update_cut(&self, cut: Option<CutSetup>) -> Result<(Model, UpdateStats), ModelError> {
+        if self.body_force {
+            return Err(ModelError::BodyForceUpdate);
+        }
+        let mesh = &self.mesh;
+        let n_nodes = mesh.n_nodes();
+        let n_shape = shape_count(mesh, cut.as_ref())?;
+        let need_mass = self.lumped_mass.is_some();
+        let map = shape_map(n_nodes, self.cut.as_ref(), cut.as_ref(), self.n_shape);
+        let integrator = Integrator {
+            mesh,
+            rho: self.material.density,
+            integration: self.integration,
+            gravity: self.gravity,
+            body_force: None,
+            need_mass,
+        };
+        let mut stats = UpdateStats::default();
+
+        // Globals: the old ones on the new shape ids.
+        let mut globals = Globals::new(n_shape, cut.as_ref(), need_mass);
+        for (so, &sn) in map.iter().enumerate() {
+            if sn == NONE {
+                continue;
+            }
+            let sn = sn as usize;
+            globals.load[3 * sn..3 * sn + 3].copy_from_slice(&self.load[3 * so..3 * so + 3]);
+            if let (Some(l), Some(lo)) = (globals.lumped.as_mut(), &self.lumped_mass) {
+                l[sn] = lo[so];
+            }
+            if let (Some(c), Some(co), true) = (
+                globals.coupling.as_mut(),
+                &self.lumped_coupling,
+                so >= n_nodes && so < n_nodes + self.n_enriched(),
+            ) {
+                c[sn - n_nodes] = co[so - n_nodes];
+            }
+        }
+
+        // Elements: kept, or integrated again (old block out, new block in).
+        let mut flat = FlatElements::with_capacity(mesh.n_elements(), self.shape_ids.len());
+        let mut changed: Vec<(usize, ElementBlock)> = Vec::new();
+        let mut old_masses: Vec<(usize, Vec<f64>)> = Vec::new();
+        for e in 0..mesh.n_elements() {
+            let el = &self.elements[e];
+            if same_element_model(mesh, self.cut.as_ref(), cut.as_ref(), e) {
+                let ids: Vec<u32> = self.shape_ids[el.shapes.clone()]
+                    .iter()
+                    .map(|&s| map[s as usize])
+                    .collect();
+                let groups = &self.groups[el.groups.clone()];
+                let m = el.shapes.len();
+                let (g0, g1) = match (groups.first(), groups.last()) {
+                    (Some(f), Some(l)) => (f.grads as usize, l.grads as usize + m),
+                    _ => (0, 0),
+                };
+                flat.push(e, &ids, groups, &self.grads[g0..g1]);
+                continue;
+            }
+            let old_cells = element_cells(mesh, self.cut.as_ref(), e)?;
+            let mut old_block = integrator.block(&old_cells, None);
+            for s in old_block.shape_ids.iter_mut() {
+                *s = map[*s as usize];
+            }
+            globals.sub_mapped(&old_block, n_nodes);
+            if need_mass {
+                old_masses.push((e, std::mem::take(&mut old_block.mass)));
+            }
+            let cells = element_cells(mesh, cut.as_ref(), e)?;
+            let block = integrator.block(&cells, None);
+            globals.add(&block, n_nodes);
+            flat.push_block(e, &block);
+            changed.push((e, block));
+        }
+        stats.changed_elements = changed.len();
+
+        // Equations: the old numbers of DOFs that stay (compacted in order), new ones appended.
+        let mut old_of_new = vec![NONE; n_shape];
+        for (so, &sn) in map.iter().enumerate() {
+            if sn != NONE {
+                old_of_new[sn as usize] = so as u32;
+            }
+        }
+        let mut eq_map = vec![NONE; self.n_free];
+        for (dof, &eq) in self.equation.iter().enumerate() {
+            if eq != NONE && map[dof / 3] != NONE {
+                eq_map[eq as usize] = 0;
+            }
+        }
+        let mut n_free = 0u32;
+        for m in eq_map.iter_mut() {
+            if *m == 0 {
+                *m = n_free;
+                n_free += 1;
+            }
+        }
+        stats.dropped_equations = self.n_free - n_free as usize;
+        let mut equation = vec![NONE; 3 * n_shape];
+        for (sn, &so) in old_of_new.iter().enumerate() {
+            if so != NONE {
+                for c in 0..3 {
+                    let eq = self.equation[3 * so as usize + c];
+                    if eq != NONE {
+                        equation[3 * sn + c] = eq_map[eq as usize];
+                    }
+                }
+            } else {
+                // A new shape function (enriched: never prescribed).
+                for c in 0..3 {
+                    equation[3 * sn + c] = n_free;
+                    n_free += 1;
+                }
+            }
+        }
+        let n_free = n_free as usize;
+        stats.new_equations = n_free + stats.dropped_equations - self.n_free;
+
+        // Pattern: the old entries that stay merged, column by column, with
+        // the changed elements' entries; eq_map keeps the old order, so the
+        // old rows stay sorted and each old entry's new position is known.
+        let old = &self.pattern;
+        let mut extra: Vec<(u32, u32)> = Vec::new();
+        for (e, _) in &changed {
+            let el = &flat.elements[*e];
+            let dofs = element_equations(&flat.shape_ids[el.shapes.clone()], &equation);
+            for &r in &dofs {
+                for &c in &dofs {
+                    if r != NONE && c != NONE && r >= c {
+                        extra.push((c, r));
+                    }
+                }
+            }
+        }
+        extra.sort_unstable();
+        extra.dedup();
+        let mut old_column = vec![NONE; n_free];
+        for (c, &cn) in eq_map.iter().enumerate() {
+            if cn != NONE {
+                old_column[cn as usize] = c as u32;
+            }
+        }
+        let mut position = vec![NONE; old.nnz()];
+        let mut col_ptr = Vec::with_capacity(n_free + 1);
+        let mut row_idx = Vec::with_capacity(old.nnz() + extra.len());
+        col_ptr.push(0);
+        let mut next = 0;
+        for cn in 0..n_free {
+            let start = next;
+            while next < extra.len() && extra[next].0 as usize == cn {
+                next += 1;
+            }
+            let mut added = extra[start..next]
+                .iter()
+                .map(|&(_, r)| r as usize)
+                .peekable();
+            if old_column[cn] != NONE {
+                let c = old_column[cn] as usize;
+                for p in old.col_ptr[c]..old.col_ptr[c + 1] {
+                    let rn = eq_map[old.row_idx[p]];
+                    if rn == NONE {
+                        continue;
+                    }
+                    let rn = rn as usize;
+                    while let Some(r) = added.next_if(|&r| r < rn) {
+                        row_idx.push(r);
+                    }
+                    added.next_if_eq(&rn);
+                    position[p] = row_idx.len() as u32;
+                    row_idx.push(rn);
+                }
+            }
+            row_idx.extend(added);
+            col_ptr.push(row_idx.len());
+        }
+        let pattern = Pattern {
+            n: n_free,
+            col_ptr,
+            row_idx,
+        };
+        let mut scatter = vec![NONE; flat.scatter_len];
+        let mut next_changed = changed.iter().map(|(e, _)| *e).peekable();
+        for (e, el) in flat.elements.iter().enumerate() {
+            if next_changed.next_if_eq(&e).is_some() {
+                element_scatter(
+                    el,
+                    &flat.shape_ids[el.shapes.clone()],
+                    &equation,
+                    &pattern,
+                    &mut scatter,
+                );
+            } else {
+                let old_el = &self.elements[e];
+                let n = 9 * el.shapes.len() * el.shapes.len();
+                for (s, &p) in scatter[el.scatter..el.scatter + n]
+                    .iter_mut()
+                    .zip(&self.scatter[old_el.scatter..old_el.scatter + n])
+                {
+                    *s = if p == NONE {
+                        NONE
+                    } else {
+                        position[p as usize]
+                    };
+                }
+            }
+        }
+
+        // Consistent mass: the old values moved, changed elements' old mass out, new in.
+        let consistent_mass = self.consistent_mass.as_ref().map(|old_values| {
+            let mut values = vec![0.0; pattern.nnz()];
+            for (p, &v) in old_values.iter().enumerate() {
+                if position[p] != NONE {
+                    values[position[p] as usize] += v;
+                }
+            }
+            for (e, me) in &old_masses {
+                let el = &self.elements[*e];
+                let m = el.shapes.len();
+                for a in 0..m {
+                    for b in 0..m {
+                        for c in 0..3 {
+                            let p = self.scatter[el.scatter + (3 * a + c) * 3 * m + 3 * b + c];
+                            if p != NONE && position[p as usize] != NONE {
+                                values[position[p as usize] as usize] -= me[a * m + b];
+                            }
+                        }
+                    }
+                }
+            }
+            for (e, block) in &changed {
+                add_element_mass(&flat.elements[*e], &block.mass, &scatter, &mut values, 1.0);
+            }
+            values
+        });
+        let mut shape_ref = self.shape_ref.clone();
+        shape_ref.resize(n_nodes, Vector3::zeros());
+        shape_ref.resize(n_shape, Vector3::zeros());
+        let mid_edge = mid_edges(mesh, cut.as_ref());
+        let model = Model {
+            mesh: mesh.clone(),
+            material: self.material,
+            lame: self.lame,
+            formulation: self.formulation,
+            integration: self.integration,
+            gravity: self.gravity,
+            body_force: false,
+            cut,
+            n_shape,
+            shape_ref,
+            elements: flat.elements,
+            shape_ids: flat.shape_ids,
+            groups: flat.groups,
+            grads: flat.grads,
+            group_element: flat.group_element,
+            equation,
+            n_free,
+            prescribed: self.prescribed.clone(),
+            pattern,
+            scatter,
+            load: globals.load,
+            lumped_mass: globals.lumped,
+            lumped_coupling: globals.coupling,
+            consistent_mass,
+            mid_edge,
+        };
+        Ok((model, stats))
     }
 }

@@ -9,6 +9,7 @@
 //! - [`stress`]: the stress suite behind `xfem-cut stress`.
 //! - [`fixtures`]: the clamped beam and the fragment spin that tests, benches and examples share.
 //! - [`report`]: `reports/README.md` and its plots.
+//! - [`sweep`]: a progressive cut's cost as a time series (CSV and SVG).
 
 pub mod converge;
 pub mod exact;
@@ -16,6 +17,7 @@ pub mod fixtures;
 pub mod reference;
 pub mod report;
 pub mod stress;
+pub mod sweep;
 pub mod verify;
 
 use crate::cut::CutError;

@@ -1,0 +1,194 @@
+//! The cost of a progressive cut as a time series (issue 12): per time step
+//! the simulated time, the wall time of the step and whether a cut event
+//! followed it (with the event's own seconds: set-up, model update, state
+//! map, symbolic factorisation; the numeric refactorisation is in the next
+//! step's time). [`rows`] takes them from a [`Sweep`], [`write_csv`] /
+//! [`read_csv`] store them, [`plot`] draws them (step time against simulated
+//! time, events marked) for the report.
+
+use crate::blade::Sweep;
+use crate::io::IoError;
+use plotters::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// One time step of a sweep.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SweepRow {
+    /// Simulated time at the end of the step (s).
+    #[serde(serialize_with = "crate::io::csv::sci")]
+    pub time: f64,
+    /// Wall time of the step (s).
+    #[serde(serialize_with = "crate::io::csv::sci")]
+    pub step_seconds: f64,
+    /// Whether a cut event followed the step.
+    pub event: bool,
+    /// Wall time of that event (s; 0 without one).
+    #[serde(serialize_with = "crate::io::csv::sci")]
+    pub event_seconds: f64,
+}
+
+/// Why a sweep series could not be drawn.
+#[derive(Debug, thiserror::Error)]
+pub enum PlotError {
+    #[error("{}: drawing the sweep series: {message}", file.display())]
+    Draw { file: PathBuf, message: String },
+    #[error("no steps to draw")]
+    Empty,
+}
+
+/// The per-step series of a finished sweep, events attached to the step they followed.
+pub fn rows(sweep: &Sweep) -> Vec<SweepRow> {
+    let mut events = sweep.events.iter().peekable();
+    sweep
+        .series
+        .iter()
+        .enumerate()
+        .map(|(k, &(time, step_seconds, event))| {
+            let mut event_seconds = 0.0;
+            while let Some(e) = events.next_if(|e| e.step <= k + 1) {
+                if e.step == k + 1 {
+                    event_seconds += e.seconds;
+                }
+            }
+            SweepRow {
+                time,
+                step_seconds,
+                event,
+                event_seconds,
+            }
+        })
+        .collect()
+}
+
+/// Writes the series as CSV (`time,step_seconds,event,event_seconds`).
+pub fn write_csv(path: &Path, rows: &[SweepRow]) -> Result<(), IoError> {
+    crate::io::csv::write_rows(path, rows)
+}
+
+/// Reads a series [`write_csv`] wrote.
+pub fn read_csv(path: &Path) -> Result<Vec<SweepRow>, IoError> {
+    crate::io::csv::read_rows(path, false)
+}
+
+/// Draws the step time (ms, log scale) against simulated time, the steps
+/// followed by a cut event and the events' own time marked, as an SVG.
+pub fn plot(path: &Path, title: &str, rows: &[SweepRow]) -> Result<(), PlotError> {
+    let draw = |e: &dyn std::fmt::Display| PlotError::Draw {
+        file: path.to_path_buf(),
+        message: e.to_string(),
+    };
+    if rows.is_empty() {
+        return Err(PlotError::Empty);
+    }
+    let ms = |s: f64| (s * 1e3).max(1e-4);
+    let t_max = rows.iter().map(|r| r.time).fold(0.0, f64::max);
+    let values = rows
+        .iter()
+        .flat_map(|r| [ms(r.step_seconds), ms(r.event_seconds)])
+        .filter(|&v| v > 1e-4);
+    let (lo, hi) = values.fold((f64::INFINITY, 0.0f64), |(a, b), v| (a.min(v), b.max(v)));
+    let (lo, hi) = if lo.is_finite() {
+        (lo, hi)
+    } else {
+        (1e-3, 1.0)
+    };
+    let root = SVGBackend::new(path, (760, 420)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| draw(&e))?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 17))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d(0.0..t_max * 1.02, (lo * 0.7..hi * 1.5).log_scale())
+        .map_err(|e| draw(&e))?;
+    chart
+        .configure_mesh()
+        .x_desc("simulated time (s)")
+        .y_desc("wall time (ms)")
+        .draw()
+        .map_err(|e| draw(&e))?;
+    let step: Vec<(f64, f64)> = rows.iter().map(|r| (r.time, ms(r.step_seconds))).collect();
+    chart
+        .draw_series(LineSeries::new(step, BLUE.stroke_width(1)))
+        .map_err(|e| draw(&e))?
+        .label("step")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], BLUE));
+    let events: Vec<&SweepRow> = rows.iter().filter(|r| r.event).collect();
+    chart
+        .draw_series(
+            events
+                .iter()
+                .map(|r| Circle::new((r.time, ms(r.event_seconds)), 4, RED.filled())),
+        )
+        .map_err(|e| draw(&e))?
+        .label("cut event (set-up, model update, symbolic)")
+        .legend(|(x, y)| Circle::new((x + 9, y), 4, RED.filled()));
+    chart
+        .draw_series(
+            events
+                .iter()
+                .map(|r| Cross::new((r.time, ms(r.step_seconds)), 4, RED.stroke_width(1))),
+        )
+        .map_err(|e| draw(&e))?
+        .label("step followed by an event")
+        .legend(|(x, y)| Cross::new((x + 9, y), 4, RED));
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()
+        .map_err(|e| draw(&e))?;
+    root.present().map_err(|e| draw(&e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::blade::Event;
+    use crate::dynamics::Energies;
+
+    fn event(step: usize, seconds: f64) -> Event {
+        Event {
+            step,
+            time: 0.01 * step as f64,
+            dofs_before: 0,
+            dofs_after: 0,
+            enriched_before: 0,
+            enriched_after: 0,
+            before: Energies::default(),
+            after: Energies::default(),
+            pattern_changed: true,
+            changed_elements: 0,
+            model_seconds: 0.0,
+            symbolic_seconds: 0.0,
+            seconds,
+        }
+    }
+
+    #[test]
+    fn a_series_keeps_its_events_and_reads_back_and_draws() {
+        let sweep = Sweep {
+            series: (1..=5)
+                .map(|k| (0.01 * k as f64, 1e-3 * k as f64, k == 2 || k == 4))
+                .collect(),
+            events: vec![event(2, 0.25), event(4, 0.5)],
+            ..Sweep::default()
+        };
+        let r = rows(&sweep);
+        let flags: Vec<bool> = r.iter().map(|r| r.event).collect();
+        assert_eq!(flags, [false, true, false, true, false]);
+        let secs: Vec<f64> = r.iter().map(|r| r.event_seconds).collect();
+        assert_eq!(secs, [0.0, 0.25, 0.0, 0.5, 0.0]);
+        let dir = tempfile::tempdir().unwrap();
+        let csv = dir.path().join("sweep.csv");
+        write_csv(&csv, &r).unwrap();
+        assert_eq!(read_csv(&csv).unwrap(), r);
+        let svg = dir.path().join("sweep.svg");
+        plot(&svg, "test sweep", &r).unwrap();
+        let text = std::fs::read_to_string(&svg).unwrap();
+        assert!(text.starts_with("<svg") && text.contains("cut event"));
+        assert!(matches!(plot(&svg, "empty", &[]), Err(PlotError::Empty)));
+    }
+}
