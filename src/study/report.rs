@@ -468,6 +468,9 @@ pub fn write_report(reports: &Path, criterion_dir: &Path, machine: &str) -> Resu
         md.push('\n');
     }
     md.push_str(&exact_section(reports)?);
+    if let Some(section) = sweep_section(reports)? {
+        md.push_str(&section);
+    }
     if let Some(section) = corotational_section(reports)? {
         md.push_str(&section);
     }
@@ -524,6 +527,52 @@ pub fn write_report(reports: &Path, criterion_dir: &Path, machine: &str) -> Resu
 /// (`reports/data/exact.csv`, [`exact`]), a table per case with the orders
 /// between successive levels, the last pair's orders against theory and an
 /// error-vs-DOFs plot of L2 and energy errors.
+/// The cost of a blade's sweep as a time series (`data/sweep_series.csv`,
+/// written by `examples/sweep_series.rs`), redrawn as `sweep_series.svg`,
+/// with its medians: a step between events, an event with the step after it.
+fn sweep_section(reports: &Path) -> Result<Option<String>, StudyError> {
+    let csv = reports.join("data/sweep_series.csv");
+    if !csv.exists() {
+        return Ok(None);
+    }
+    let rows = crate::study::sweep::read_csv(&csv)?;
+    let svg = reports.join("sweep_series.svg");
+    crate::study::sweep::plot(
+        &svg,
+        "seed beam, blade through the seed cut (linear Tet4)",
+        &rows,
+    )
+    .map_err(|e| plot_error(&svg, e))?;
+    let med = |mut v: Vec<f64>| -> f64 {
+        if v.is_empty() {
+            return f64::NAN;
+        }
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let events: Vec<&crate::study::sweep::SweepRow> = rows.iter().filter(|r| r.event).collect();
+    let plain = med(rows
+        .iter()
+        .filter(|r| !r.event)
+        .map(|r| r.step_seconds)
+        .collect());
+    let event = med(events
+        .iter()
+        .map(|r| r.event_seconds + r.step_seconds)
+        .collect());
+    let mut md = String::from("## Cutting while it runs: the cost of a sweep\n\n");
+    let _ = writeln!(
+        md,
+        "The seed's beam cut by a blade that sweeps the seed's cut during [0.1, 0.6] s (`examples/sweep_series.rs`, front extended through the elements it is in, linear Tet4, dt = 0.01 s): {} steps, {} cut events; median step {:.3} ms, median event with its step {:.3} ms ({:.1}×). Each event updates the model where the cut changed (`Model::update_cut`) and refactorises; the numeric refactorisation dominates it. Measured on the machine that wrote the CSV (2 shared cores: rough).\n\n![step time against simulated time, events marked](sweep_series.svg)\n",
+        rows.len(),
+        events.len(),
+        plain * 1e3,
+        event * 1e3,
+        event / plain
+    );
+    Ok(Some(md))
+}
+
 fn exact_section(reports: &Path) -> Result<String, StudyError> {
     let mut md = String::from("## Code verification: exact solutions\n\nThe sections above are solution verification (against references computed by other software). This is the code-verification half: exact solutions of linear elasticity on the unit box (E = 1, ν = 0.3), imposed on the whole outer boundary, solved by the X-FEM code at several levels (structured, 6 tets per cube, n divisions per edge, h = 1/n; \"jittered\": interior nodes moved by up to 0.2 h), with relative L2 and energy errors integrated on every integration cell (degree 5; collapsed rules at a front) against the exact field on each side of the cut. Orders are log(error ratio) / log(h ratio) between successive levels; the last pair's order is compared with the rate theory expects. Written by `xfem-cut converge --exact` (`src/study/exact.rs`); `tests/exact.rs` runs the same variants and asserts the orders.\n\n");
     let path = reports.join(exact::CSV);
@@ -975,5 +1024,28 @@ mod tests {
             median(&benches, "cut-step", &["linear-uncut", "tet4", "10k"]),
             Some(1.0e6)
         );
+    }
+
+    #[test]
+    fn the_sweep_section_summarises_the_committed_series_and_draws_it() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir_all(dir.path().join("data")).unwrap();
+        let committed = Path::new(env!("CARGO_MANIFEST_DIR")).join("reports/data/sweep_series.csv");
+        std::fs::copy(&committed, dir.path().join("data/sweep_series.csv")).unwrap();
+        let md = sweep_section(dir.path()).unwrap().expect("a section");
+        println!("{md}");
+        let rows = crate::study::sweep::read_csv(&committed).unwrap();
+        let events = rows.iter().filter(|r| r.event).count();
+        assert!(events > 0);
+        assert!(
+            md.contains(&format!("{} steps, {events} cut events", rows.len())),
+            "{md}"
+        );
+        assert!(md.contains("(sweep_series.svg)"));
+        let svg = std::fs::metadata(dir.path().join("sweep_series.svg")).unwrap();
+        assert!(svg.len() > 1000);
+        assert!(sweep_section(&dir.path().join("nothing"))
+            .unwrap()
+            .is_none());
     }
 }
