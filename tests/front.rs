@@ -296,6 +296,11 @@ fn tet10_tet4_topological_and_extend_side_by_side() {
         FrontMode::Tip,
         Some(0.2),
     );
+    // Tet10 is more accurate than Tet4 at equal DOFs (measured: 4.3× in L2,
+    // 4.7× in energy at 4914 DOFs), and its error falls. (Until the boundary
+    // values of Heaviside mid-nodes between tip vertices were right, Tet10
+    // was the worse of the two: those DOFs were imposed as if the tip
+    // functions did not jump there too.)
     for r in &t10[1..] {
         let l2_4 = at_dofs(&t4, r.dofs as f64, |r| r.l2);
         let en_4 = at_dofs(&t4, r.dofs as f64, |r| r.energy);
@@ -303,10 +308,8 @@ fn tet10_tet4_topological_and_extend_side_by_side() {
             "at {} DOFs: tet10 L2 {:.3e} vs tet4 {:.3e}; energy {:.3e} vs {:.3e}",
             r.dofs, r.l2, l2_4, r.energy, en_4
         );
+        assert!(r.l2 < l2_4 && r.energy < en_4, "at {} DOFs", r.dofs);
     }
-    // Not asserted, not met yet: Tet10 is *not* more accurate than Tet4 at
-    // equal DOFs here (blending elements of the quadratic space are not
-    // corrected; issue 11 asks for it). Asserted: its error falls.
     assert!(t10
         .windows(2)
         .all(|w| w[1].l2 < w[0].l2 && w[1].energy < w[0].energy));
