@@ -4,6 +4,7 @@
 //! This runs every Newton iteration / time step; it borrows the [`Model`] and
 //! writes into buffers owned by the caller ([`Workspace`]), allocating nothing.
 
+use crate::kernel::DenseKernel;
 use crate::model::{group_rotation, Formulation, GroupKernel, Model, NONE};
 use crate::solve::Parallelism;
 use nalgebra::{Matrix3, Vector3};
@@ -28,10 +29,16 @@ pub struct Workspace {
     chunks: Vec<Chunk>,
 }
 
-/// The kernel's scratch (rotated gradients, the exact tangent's v_jb).
+/// The kernels' scratch (rotated gradients, the exact tangent's v_jb; a
+/// dense group's local displacements and forces, its tangent's P_a, T_a).
 struct Scratch {
     rotated: Vec<Vector3<f64>>,
     cross: Vec<[Vector3<f64>; 3]>,
+    local: Vec<f64>,
+    local_y: Vec<f64>,
+    local_forces: Vec<f64>,
+    p: Vec<Matrix3<f64>>,
+    t: Vec<Matrix3<f64>>,
 }
 
 impl Scratch {
@@ -39,6 +46,11 @@ impl Scratch {
         Scratch {
             rotated: vec![Vector3::zeros(); m],
             cross: vec![[Vector3::zeros(); 3]; m],
+            local: vec![0.0; 3 * m],
+            local_y: vec![0.0; 3 * m],
+            local_forces: vec![0.0; 3 * m],
+            p: vec![Matrix3::zeros(); m],
+            t: vec![Matrix3::zeros(); m],
         }
     }
 }
@@ -116,15 +128,16 @@ pub struct Request<'a> {
 }
 
 /// The one gather/group loop of the crate: for each group g of each element,
-/// calls `visit(g, shapes, grads, F, scratch)` with F = I + Σ_a x_a ⊗ ∇φ_a,
-/// the deformation gradient of the nodal vector `x` (all DOFs).
+/// calls `visit(g, shapes, values, grads, F, scratch)` with `values` the
+/// element's x_a and F = I + Σ_a x_a ⊗ ∇φ_a, the deformation gradient of
+/// the nodal vector `x` (all DOFs; a dense group's averaged gradients give F̄).
 fn for_each_group(
     model: &Model,
     elements: Range<usize>,
     x: &[f64],
     disp: &mut [Vector3<f64>],
     scratch: &mut Scratch,
-    mut visit: impl FnMut(usize, &[u32], &[Vector3<f64>], &Matrix3<f64>, &mut Scratch),
+    mut visit: impl FnMut(usize, &[u32], &[Vector3<f64>], &[Vector3<f64>], &Matrix3<f64>, &mut Scratch),
 ) {
     for el in &model.elements[elements] {
         let shapes = &model.shape_ids[el.shapes.clone()];
@@ -137,7 +150,7 @@ fn for_each_group(
             let start = model.groups[g].grads as usize;
             let grads = &model.grads[start..start + m];
             let f = GroupKernel::deformation_gradient(grads, |a| disp[a]);
-            visit(g, shapes, grads, &f, scratch);
+            visit(g, shapes, &disp[..m], grads, &f, scratch);
         }
     }
 }
@@ -296,12 +309,71 @@ impl Pass<'_> {
             self.d,
             disp,
             scratch,
-            |g, shapes, grads, f, scratch| {
+            |g, shapes, values, grads, f, scratch| {
                 let r = &mut rot[g - g0];
                 if update {
                     *r = group_rotation(model.formulation, f, r);
                 }
                 let group = model.groups[g];
+                let m = shapes.len();
+                let el = &model.elements[model.group_element[g] as usize];
+                let map = &model.scatter[el.scatter..el.scatter + 9 * m * m];
+                let scattered =
+                    |k: &mut [f64], scale: f64, a: usize, b: usize, block: &Matrix3<f64>| {
+                        scatter_block(k, map, 3 * m, a, b, block, scale)
+                    };
+                if let Some(stiffness) = model.group_stiffness(g) {
+                    let kernel = DenseKernel {
+                        stiffness,
+                        rotation: *r,
+                    };
+                    let (u, y, h) = (
+                        &mut scratch.local[..3 * m],
+                        &mut scratch.local_y[..3 * m],
+                        &mut scratch.local_forces[..3 * m],
+                    );
+                    kernel.local_displacements(
+                        values,
+                        |a| model.shape_ref[shapes[a] as usize],
+                        u,
+                        y,
+                    );
+                    energy += kernel.local_forces(u, h);
+                    // Corotational: the rotation's derivative (conservative forces, a Hessian).
+                    let rd = corotational
+                        .then(|| kernel.rotation_derivative(f))
+                        .flatten();
+                    if let Some(out) = forces.as_deref_mut() {
+                        let correction =
+                            rd.as_ref().map(|rd| (rd, grads, DenseKernel::moment(u, h)));
+                        kernel.add_forces(h, correction, |a, fa| add_nodal(out, shapes, a, &fa));
+                    }
+                    if let Some(k) = tangent.as_deref_mut() {
+                        let exact_rd = rd.as_ref().filter(|_| exact);
+                        if let Some(rd) = exact_rd {
+                            kernel.exact_tangent_blocks(
+                                rd,
+                                grads,
+                                u,
+                                y,
+                                h,
+                                &mut scratch.p[..m],
+                                &mut scratch.t[..m],
+                                |a, b, block| scattered(k, 1.0, a, b, block),
+                            );
+                        }
+                        let scale = if exact_rd.is_some() {
+                            damping
+                        } else {
+                            1.0 + damping
+                        };
+                        if scale != 0.0 {
+                            kernel
+                                .tangent_blocks(m, |a, b, block| scattered(k, scale, a, b, block));
+                        }
+                    }
+                    return;
+                }
                 let kernel = GroupKernel {
                     lame,
                     weight: group.weight,
@@ -315,14 +387,7 @@ impl Pass<'_> {
                     kernel.add_forces(&sigma, |a, fa| add_nodal(out, shapes, a, &fa));
                 }
                 if let Some(k) = tangent.as_deref_mut() {
-                    let m = shapes.len();
-                    let el = &model.elements[model.group_element[g] as usize];
-                    let map = &model.scatter[el.scatter..el.scatter + 9 * m * m];
                     let scale = 1.0 + damping;
-                    let scattered =
-                        |k: &mut [f64], scale: f64, a: usize, b: usize, block: &Matrix3<f64>| {
-                            scatter_block(k, map, 3 * m, a, b, block, scale)
-                        };
                     let exact_done = exact
                         && kernel.exact_tangent_blocks(
                             f,
@@ -393,12 +458,30 @@ pub fn tangent_product(
         z,
         disp,
         scratch,
-        |g, shapes, grads, f, _| {
+        |g, shapes, values, grads, f, scratch| {
+            let rotation = rot.0[g];
+            if let Some(stiffness) = model.group_stiffness(g) {
+                // y_a += R (K Rᵀz)_a.
+                let kernel = DenseKernel {
+                    stiffness,
+                    rotation,
+                };
+                let m = shapes.len();
+                let (u, ry, h) = (
+                    &mut scratch.local[..3 * m],
+                    &mut scratch.local_y[..3 * m],
+                    &mut scratch.local_forces[..3 * m],
+                );
+                kernel.local_displacements(values, |_| Vector3::zeros(), u, ry);
+                kernel.local_forces(u, h);
+                kernel.add_forces(h, None, |a, fa| add_nodal(y, shapes, a, &fa));
+                return;
+            }
             let kernel = GroupKernel {
                 lame,
                 weight: model.groups[g].weight,
                 grads,
-                rotation: rot.0[g],
+                rotation,
             };
             // ∇z = F(z) − I, then the local strain of Rᵀz: sym(Rᵀ ∇z).
             let rgz = kernel.rotation.transpose() * (f - Matrix3::identity());
@@ -579,6 +662,9 @@ pub fn element_data_pass(model: &Model, d: &[f64], f: &mut [f64], k: &mut [f64])
             let start = group.grads as usize;
             let grads = &model.grads[start..start + n];
             acc += group.weight * u * grads.iter().map(|v| v.x + v.y + v.z).sum::<f64>();
+            if let Some(k) = model.group_stiffness(g) {
+                acc += u * k.iter().sum::<f64>();
+            }
         }
         for &s in shapes {
             let s = 3 * s as usize;
@@ -614,5 +700,6 @@ pub fn element_data_bytes(model: &Model) -> usize {
         + model.groups.len() * size_of::<crate::model::Group>()
         + grads * size_of::<Vector3<f64>>()
         + scatter * size_of::<u32>()
+        + model.stiffness.len() * size_of::<f64>()
         + model.elements.len() * size_of::<crate::model::ElementData>()
 }

@@ -155,3 +155,209 @@ pub fn group_rotation(
         Formulation::Corotational => polar_rotation(f, guess),
     }
 }
+
+/// The kernel of a dense group (one rotation for many quadrature points,
+/// [`crate::model::Group`]): local displacements u_a = Rᵀ(X_a + d_a) − X_a
+/// (X_a = 0 for enriched functions), local forces h = K u, energy
+/// E = ½ u·h. With R fixed this is exactly the sum of its points'
+/// [`GroupKernel`]s sharing R: RᵀF_q − I = Σ_a u_a ⊗ ∇φ_a(q), since the
+/// standard functions reproduce X (Σ X_a ⊗ ∇φ_a = I).
+///
+/// R is the polar rotation of the group's F̄ = I + Σ_a d_a ⊗ ḡ_a, and the
+/// forces are the gradient of E(x) with R = R(F̄(x)):
+/// f_b = R h_b − T_bᵀ τ, with τ = Σ_a u_a × h_a (the moment of the local
+/// forces about the rotated frame; zero for one point, whose RᵀF is
+/// symmetric) and T_b = Z⁻¹ [ḡ_b]× Rᵀ the rotation's derivative
+/// (ω = Σ_b T_b dx_b for dR = R [ω]×; Z = tr S I − S, S = RᵀF̄). So the
+/// group is conservative (energy is kept in dynamics) and its tangent is a
+/// Hessian: symmetric, as the Cholesky solve needs. (R h_b alone, the
+/// seed's R K (Rᵀx − x₀), is not a gradient when the points' RᵀF_q differ:
+/// its Jacobian has an antisymmetric part of the order of the stress.)
+pub struct DenseKernel<'a> {
+    /// (3m)² row-major, symmetric.
+    pub stiffness: &'a [f64],
+    pub rotation: Matrix3<f64>,
+}
+
+/// The rotation derivative of a dense group at F̄: Z⁻¹, S, and per
+/// function T_b = Z⁻¹ [ḡ_b]× Rᵀ.
+pub struct RotationDerivative {
+    pub s: Matrix3<f64>,
+    pub z_inv: Matrix3<f64>,
+}
+
+/// The force correction −T_bᵀ τ's data: the rotation derivative, the
+/// averaged gradients and τ.
+pub type Correction<'a> = (&'a RotationDerivative, &'a [Vector3<f64>], Vector3<f64>);
+
+fn cross3(v: &[f64]) -> Matrix3<f64> {
+    Vector3::new(v[0], v[1], v[2]).cross_matrix()
+}
+
+fn vec3(v: &[f64]) -> Vector3<f64> {
+    Vector3::new(v[0], v[1], v[2])
+}
+
+impl DenseKernel<'_> {
+    /// u and y = u + X (3m each) from the displacements `disp` and
+    /// reference positions `x0`.
+    pub fn local_displacements(
+        &self,
+        disp: &[Vector3<f64>],
+        x0: impl Fn(usize) -> Vector3<f64>,
+        u: &mut [f64],
+        y: &mut [f64],
+    ) {
+        let rt = self.rotation.transpose();
+        for (a, d) in disp.iter().enumerate() {
+            let x = x0(a);
+            let ya = rt * (x + d);
+            let ua = ya - x;
+            u[3 * a..3 * a + 3].copy_from_slice(ua.as_slice());
+            y[3 * a..3 * a + 3].copy_from_slice(ya.as_slice());
+        }
+    }
+
+    /// h = K u; returns the energy ½ u·h.
+    pub fn local_forces(&self, u: &[f64], h: &mut [f64]) -> f64 {
+        let n = u.len();
+        let mut energy = 0.0;
+        for (i, hi) in h.iter_mut().enumerate().take(n) {
+            let row = &self.stiffness[i * n..(i + 1) * n];
+            *hi = row.iter().zip(u).map(|(k, v)| k * v).sum();
+            energy += 0.5 * u[i] * *hi;
+        }
+        energy
+    }
+
+    /// Z⁻¹ and S at F̄ `f`, or `None` where Z is singular (a degenerate
+    /// state: the caller then drops the rotation's derivative).
+    pub fn rotation_derivative(&self, f: &Matrix3<f64>) -> Option<RotationDerivative> {
+        let s = self.rotation.transpose() * f;
+        let s = (s + s.transpose()) * 0.5;
+        let tr = s.trace();
+        let z = Matrix3::identity() * tr - s;
+        let scale = tr.abs().max(1.0);
+        if z.determinant().abs() <= 1e-10 * scale * scale * scale {
+            return None;
+        }
+        z.try_inverse().map(|z_inv| RotationDerivative { s, z_inv })
+    }
+
+    /// τ = Σ_a u_a × h_a.
+    pub fn moment(u: &[f64], h: &[f64]) -> Vector3<f64> {
+        u.chunks_exact(3)
+            .zip(h.chunks_exact(3))
+            .fold(Vector3::zeros(), |t, (ua, ha)| {
+                t + vec3(ua).cross(&vec3(ha))
+            })
+    }
+
+    /// Forces f_b = R h_b − T_bᵀ τ (adds to `out`, one per shape function);
+    /// without `derivative`, R h_b.
+    pub fn add_forces(
+        &self,
+        h: &[f64],
+        correction: Option<Correction<'_>>,
+        mut out: impl FnMut(usize, Vector3<f64>),
+    ) {
+        let r = self.rotation;
+        // T_bᵀ τ = R [ḡ_b]×ᵀ Z⁻ᵀ τ = −R (ḡ_b × Z⁻ᵀ τ).
+        let zt = correction.map(|(rd, grads, tau)| (rd.z_inv.transpose() * tau, grads));
+        for (a, ha) in h.chunks_exact(3).enumerate() {
+            let mut fa = vec3(ha);
+            if let Some((zt, grads)) = zt {
+                fa += grads[a].cross(&zt);
+            }
+            out(a, r * fa);
+        }
+    }
+
+    /// Block (a, b) of the local stiffness.
+    fn block(&self, n: usize, a: usize, b: usize) -> Matrix3<f64> {
+        Matrix3::from_fn(|i, j| self.stiffness[(3 * a + i) * n + 3 * b + j])
+    }
+
+    /// The tangent R K Rᵀ block by block, for b ≤ a.
+    pub fn tangent_blocks(&self, m: usize, mut add: impl FnMut(usize, usize, &Matrix3<f64>)) {
+        let (r, n) = (self.rotation, 3 * m);
+        for a in 0..m {
+            for b in 0..=a {
+                add(a, b, &(r * self.block(n, a, b) * r.transpose()));
+            }
+        }
+    }
+
+    /// The Hessian of the group's energy (the exact tangent of its forces),
+    /// block by block for b ≤ a; `grads` the averaged gradients, `u`, `y`,
+    /// `h` the local displacements, positions and forces at this state:
+    ///
+    /// H_ab = R K_ab Rᵀ + P_a T_b + T_aᵀ P_bᵀ − T_aᵀ A T_b + D_ab, where
+    /// - P_a = R Q_a, Q_a = Σ_c K_ac [u_c]× − [h_a]×: d(R h_a) = R K_ab Rᵀ
+    ///   dx_b + P_a ω (dR = R [ω]×, du_c = Rᵀdx_c + [y_c]× ω, and K
+    ///   annihilates the infinitesimal rotation of X);
+    /// - dτ = Σ_b (A T_b − P_bᵀ) dx_b, A = Σ_a ([u_a]× N_a − [h_a]× [y_a]×),
+    ///   N_a = Σ_c K_ac [u_c]× (∂τ/∂ω and ∂τ/∂x);
+    /// - D_ab e_k = −(dT_a/dx_bk)ᵀ τ = R (ḡ_a × v₁) + R (ω_bk × (ḡ_a × v₂)),
+    ///   v₁ = −Z⁻ᵀ dZᵀ Z⁻ᵀ τ, v₂ = Z⁻ᵀ τ, dZ = tr(dS) I − dS,
+    ///   dS = sym(−[ω_bk]× S + Rᵀ e_k ḡ_bᵀ), ω_bk = T_b e_k.
+    ///
+    /// For one point τ ≡ 0 and this is [`GroupKernel::exact_tangent_blocks`].
+    #[allow(clippy::too_many_arguments)]
+    pub fn exact_tangent_blocks(
+        &self,
+        rd: &RotationDerivative,
+        grads: &[Vector3<f64>],
+        u: &[f64],
+        y: &[f64],
+        h: &[f64],
+        p: &mut [Matrix3<f64>],
+        t: &mut [Matrix3<f64>],
+        mut add: impl FnMut(usize, usize, &Matrix3<f64>),
+    ) {
+        let m = grads.len();
+        let (r, n) = (self.rotation, 3 * m);
+        let tau = DenseKernel::moment(u, h);
+        let mut a_mat = Matrix3::zeros();
+        for a in 0..m {
+            let mut na = Matrix3::zeros();
+            for c in 0..m {
+                na += self.block(n, a, c) * cross3(&u[3 * c..3 * c + 3]);
+            }
+            let ha = cross3(&h[3 * a..3 * a + 3]);
+            a_mat += cross3(&u[3 * a..3 * a + 3]) * na - ha * cross3(&y[3 * a..3 * a + 3]);
+            p[a] = r * (na - ha);
+            t[a] = rd.z_inv * grads[a].cross_matrix() * r.transpose();
+        }
+        let zt = rd.z_inv.transpose();
+        let v2 = zt * tau;
+        for b in 0..m {
+            // D_ab's column k for every a needs v₁(b, k) and ω_bk.
+            let mut v1 = [Vector3::zeros(); 3];
+            let mut omega = [Vector3::zeros(); 3];
+            for k in 0..3 {
+                let w = t[b].column(k).into_owned();
+                let mut ek = Vector3::zeros();
+                ek[k] = 1.0;
+                let ds = -w.cross_matrix() * rd.s + r.transpose() * ek * grads[b].transpose();
+                let ds = (ds + ds.transpose()) * 0.5;
+                let dz = Matrix3::identity() * ds.trace() - ds;
+                v1[k] = -(zt * dz.transpose() * zt) * tau;
+                omega[k] = w;
+            }
+            for a in b..m {
+                let mut block = r * self.block(n, a, b) * r.transpose() + p[a] * t[b]
+                    - t[a].transpose() * a_mat * t[b]
+                    + t[a].transpose() * p[b].transpose();
+                let gv2 = grads[a].cross(&v2);
+                for k in 0..3 {
+                    let col = r * (grads[a].cross(&v1[k]) + omega[k].cross(&gv2));
+                    for i in 0..3 {
+                        block[(i, k)] += col[i];
+                    }
+                }
+                add(a, b, &block);
+            }
+        }
+    }
+}

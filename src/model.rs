@@ -58,7 +58,10 @@ pub enum Integration {
     /// is its weight (the volume ratios of seed eq. 60–63). The default.
     Grouped,
     /// One group per quadrature point of every sub-tet (seed eq. 51), as Tet10
-    /// always does; for Tet4 it gives the same matrices, only slower.
+    /// always does; for Tet4 it gives the same matrices, only slower. In
+    /// elements holding tip-enriched nodes, a rotation per point instead of
+    /// per side (the same linear matrices; corotational forces that differ
+    /// by the rotations' spread over a side).
     SubTetQuadrature,
 }
 
@@ -71,10 +74,36 @@ pub enum Formulation {
 
 /// One integration group: weight (volume it stands for) and where its
 /// gradients start in [`Model::grads`] (one per shape function of the element).
+///
+/// A *point* group (`stiffness` = [`NONE`]) is one quadrature point, or a
+/// Tet4 side whose gradients are constant. A *dense* group (the sides of
+/// elements holding tip-enriched nodes, integrated with hundreds of points
+/// each) stores its local stiffness K = Σ_q w_q B_qᵀ C B_q, (3m)² values
+/// row-major from `stiffness` in [`Model::stiffness`], and, at `grads`, the
+/// weight-averaged gradients ḡ_a of its points: its rotation is the polar
+/// rotation of F̄ = I + Σ_a d_a ⊗ ḡ_a, shared by all its points (as a cut
+/// Tet4 side shares one), and its forces are the gradient of its energy
+/// ½ uᵀKu, u = Rᵀx − X ([`crate::kernel::DenseKernel`]).
 #[derive(Debug, Clone, Copy)]
 pub struct Group {
     pub weight: f64,
     pub grads: u32,
+    pub stiffness: u32,
+}
+
+impl Group {
+    /// A group of one quadrature point (or of constant gradients).
+    pub fn point(weight: f64, grads: u32) -> Group {
+        Group {
+            weight,
+            grads,
+            stiffness: NONE,
+        }
+    }
+
+    pub fn is_dense(&self) -> bool {
+        self.stiffness != NONE
+    }
 }
 
 /// Per-element ranges into the model's flat arrays.
@@ -131,6 +160,8 @@ pub struct Model {
     pub shape_ids: Vec<u32>,
     pub groups: Vec<Group>,
     pub grads: Vec<Vector3<f64>>,
+    /// The dense groups' local stiffness matrices ([`Group`]).
+    pub stiffness: Vec<f64>,
     /// Group index → element index.
     pub group_element: Vec<u32>,
     /// Global DOF → equation number, or [`NONE`] if prescribed.
@@ -177,6 +208,16 @@ impl Model {
         &self.grads[start..start + m]
     }
 
+    /// The local stiffness of dense group `g` ((3m)² row-major), if it is one.
+    pub fn group_stiffness(&self, g: usize) -> Option<&[f64]> {
+        let group = self.groups[g];
+        group.is_dense().then(|| {
+            let m = self.elements[self.group_element[g] as usize].shapes.len();
+            let start = group.stiffness as usize;
+            &self.stiffness[start..start + 9 * m * m]
+        })
+    }
+
     /// Builds the model: element data, enrichment, DOF numbering, pattern, loads, mass.
     pub fn build(input: ModelInput<'_>) -> Result<Model, ModelError> {
         Model::build_with(input, Integration::Grouped)
@@ -210,6 +251,7 @@ impl Model {
         shape_ref.resize(n_shape, Vector3::zeros());
         let integrator = Integrator {
             mesh: &mesh,
+            lame: Lame::from(material),
             rho: material.density,
             integration,
             gravity,
@@ -257,6 +299,7 @@ impl Model {
             shape_ids: flat.shape_ids,
             groups: flat.groups,
             grads: flat.grads,
+            stiffness: flat.stiffness,
             group_element: flat.group_element,
             equation,
             n_free,
@@ -898,6 +941,8 @@ struct ElementBlock {
     /// Integration groups, `grads` relative to this block's gradients.
     groups: Vec<Group>,
     grads: Vec<Vector3<f64>>,
+    /// Dense groups' stiffness, `stiffness` relative to this block's.
+    stiffness: Vec<f64>,
     /// ∫ f φ_a (3 per shape function; empty without body force).
     load: Vec<f64>,
     /// Lumped mass per shape function, lumped u–a coupling per Heaviside
@@ -910,6 +955,7 @@ struct ElementBlock {
 /// What step 2 integrates with: the rules, loads and density of a build.
 struct Integrator<'a> {
     mesh: &'a TetMesh,
+    lame: Lame,
     rho: f64,
     integration: Integration,
     gravity: Option<Vector3<f64>>,
@@ -941,6 +987,7 @@ impl Integrator<'_> {
             heaviside_start: self.mesh.kind.nodes(),
             groups: Vec::new(),
             grads: Vec::new(),
+            stiffness: Vec::new(),
             load: if self.has_load() && direct.is_none() {
                 vec![0.0; 3 * m]
             } else {
@@ -968,8 +1015,11 @@ impl Integrator<'_> {
         block
     }
 
-    /// Elements holding tip-enriched nodes: one group per quadrature point,
-    /// the rules of [`ElementShapes::cell_rule`].
+    /// Elements holding tip-enriched nodes: one dense group per side
+    /// ([`Group`]: the stiffness of all its points summed, their averaged
+    /// gradients; with [`Integration::SubTetQuadrature`] one point group per
+    /// point, a rotation each), the rules of [`ElementShapes::cell_rule`];
+    /// loads and mass point by point.
     fn tip_block(
         &self,
         cells: &ElementCells,
@@ -982,17 +1032,23 @@ impl Integrator<'_> {
         let m = block.shape_ids.len();
         let mut vals = vec![0.0; m];
         let mut gr = vec![Vector3::zeros(); m];
+        let per_point = self.integration == Integration::SubTetQuadrature;
+        // Per side (−1, 0, +1): its points' gradients, 3m a column, and weights.
+        let mut sides: [(Vec<f64>, Vec<f64>); 3] = Default::default();
         for cell in &cells.cells {
             let (mut int_n, mut int_n2) = ([0.0; 10], [0.0; 10]);
+            let (columns, weights) = &mut sides[(cell.side + 1) as usize];
             for q in shapes.cell_rule(&cell.vertices) {
                 let bary = crate::mesh::barycentric(&cells.verts, &q.x).unwrap_or([0.25; 4]);
                 let w = q.weight;
                 shapes.eval(&bary, cell.side, &mut vals, &mut gr);
-                block.groups.push(Group {
-                    weight: w,
-                    grads: block.grads.len() as u32,
-                });
-                block.grads.extend_from_slice(&gr);
+                if per_point {
+                    block.groups.push(Group::point(w, block.grads.len() as u32));
+                    block.grads.extend_from_slice(&gr);
+                } else {
+                    weights.push(w);
+                    columns.extend(gr.iter().flat_map(|g| [g.x, g.y, g.z]));
+                }
                 if self.has_load() {
                     let f = self.force(&q.x);
                     for (a, &v) in vals.iter().enumerate() {
@@ -1017,6 +1073,11 @@ impl Integrator<'_> {
                 self.lump(cells, cell, &int_n, &int_n2, block, sink);
             }
         }
+        for (columns, weights) in &sides {
+            if !weights.is_empty() {
+                self.dense_group(m, columns, weights, block);
+            }
+        }
         if self.need_mass {
             // Tip DOFs: the diagonal of the consistent mass (no coupling).
             for a in nn + cells.heaviside.len()..m {
@@ -1024,6 +1085,51 @@ impl Integrator<'_> {
                 sink.lumped(block, a, diagonal);
             }
         }
+    }
+
+    /// Appends the dense group of points with gradients `columns` (3m per
+    /// point) and weights `weights`: weight Σw, gradients ḡ_a = Σ w g_a / Σw
+    /// and K_ab = λ A_ab + μ A_abᵀ + μ tr(A_ab) I with A = Σ_q w_q G_q G_qᵀ
+    /// (G_q the point's 3m gradient components: one matrix product).
+    fn dense_group(&self, m: usize, columns: &[f64], weights: &[f64], block: &mut ElementBlock) {
+        let n = 3 * m;
+        let nq = weights.len();
+        let g = nalgebra::DMatrixView::from_slice(columns, n, nq);
+        let mut gw = g.clone_owned();
+        for (mut col, &w) in gw.column_iter_mut().zip(weights) {
+            col *= w;
+        }
+        let a = &gw * g.transpose();
+        let total: f64 = weights.iter().sum();
+        let grads = block.grads.len() as u32;
+        for f in 0..m {
+            let s = gw.fixed_rows::<3>(3 * f).column_sum();
+            block.grads.push(if total != 0.0 { s / total } else { s });
+        }
+        let stiffness = block.stiffness.len() as u32;
+        block.stiffness.resize(block.stiffness.len() + n * n, 0.0);
+        let k = &mut block.stiffness[stiffness as usize..];
+        let (lambda, mu) = (self.lame.lambda, self.lame.mu);
+        for p in 0..m {
+            for q in 0..m {
+                let ab = a.fixed_view::<3, 3>(3 * p, 3 * q);
+                let trace = ab.trace();
+                for i in 0..3 {
+                    for j in 0..3 {
+                        let mut v = lambda * ab[(i, j)] + mu * ab[(j, i)];
+                        if i == j {
+                            v += mu * trace;
+                        }
+                        k[(3 * p + i) * n + 3 * q + j] = v;
+                    }
+                }
+            }
+        }
+        block.groups.push(Group {
+            weight: total,
+            grads,
+            stiffness,
+        });
     }
 
     /// Elements without tip functions: per cell, the stiffness points
@@ -1057,10 +1163,9 @@ impl Integrator<'_> {
                     (true, Some(g)) => g,
                     _ => {
                         let g = block.groups.len();
-                        block.groups.push(Group {
-                            weight: 0.0,
-                            grads: block.grads.len() as u32,
-                        });
+                        block
+                            .groups
+                            .push(Group::point(0.0, block.grads.len() as u32));
                         block.grads.extend(std::iter::repeat_n(Vector3::zeros(), m));
                         if grouped {
                             side_group[(cell.side + 1) as usize] = Some(g);
@@ -1201,6 +1306,7 @@ struct FlatElements {
     shape_ids: Vec<u32>,
     groups: Vec<Group>,
     grads: Vec<Vector3<f64>>,
+    stiffness: Vec<f64>,
     group_element: Vec<u32>,
     scatter_len: usize,
 }
@@ -1212,23 +1318,44 @@ impl FlatElements {
             shape_ids: Vec::with_capacity(n_shapes),
             groups: Vec::with_capacity(n_elements),
             grads: Vec::with_capacity(n_shapes),
+            stiffness: Vec::new(),
             group_element: Vec::with_capacity(n_elements),
             scatter_len: 0,
         }
     }
 
-    /// Appends element `e`'s shape functions, groups and gradients.
-    fn push(&mut self, e: usize, shape_ids: &[u32], groups: &[Group], grads: &[Vector3<f64>]) {
+    /// Appends element `e`'s shape functions, groups, gradients and dense
+    /// stiffness (`groups`' offsets relative to the first of `grads` and of
+    /// `stiffness`).
+    fn push(
+        &mut self,
+        e: usize,
+        shape_ids: &[u32],
+        groups: &[Group],
+        grads: &[Vector3<f64>],
+        stiffness: &[f64],
+    ) {
         let m = shape_ids.len();
         let first = self.shape_ids.len();
         self.shape_ids.extend_from_slice(shape_ids);
         let group_start = self.groups.len();
         let offset = self.grads.len() as u32 - groups.first().map_or(0, |g| g.grads);
+        let dense_first = groups
+            .iter()
+            .find(|g| g.is_dense())
+            .map_or(0, |g| g.stiffness);
+        let dense_offset = self.stiffness.len() as u32 - dense_first;
         self.groups.extend(groups.iter().map(|g| Group {
             weight: g.weight,
             grads: g.grads + offset,
+            stiffness: if g.is_dense() {
+                g.stiffness + dense_offset
+            } else {
+                NONE
+            },
         }));
         self.grads.extend_from_slice(grads);
+        self.stiffness.extend_from_slice(stiffness);
         self.group_element
             .extend(std::iter::repeat_n(e as u32, groups.len()));
         self.elements.push(ElementData {
@@ -1240,7 +1367,13 @@ impl FlatElements {
     }
 
     fn push_block(&mut self, e: usize, block: &ElementBlock) {
-        self.push(e, &block.shape_ids, &block.groups, &block.grads);
+        self.push(
+            e,
+            &block.shape_ids,
+            &block.groups,
+            &block.grads,
+            &block.stiffness,
+        );
     }
 }
 
@@ -1679,6 +1812,7 @@ impl Model {
         let map = shape_map(n_nodes, self.cut.as_ref(), cut.as_ref(), self.n_shape);
         let integrator = Integrator {
             mesh,
+            lame: self.lame,
             rho: self.material.density,
             integration: self.integration,
             gravity: self.gravity,
@@ -1724,7 +1858,18 @@ impl Model {
                     (Some(f), Some(l)) => (f.grads as usize, l.grads as usize + m),
                     _ => (0, 0),
                 };
-                flat.push(e, &ids, groups, &self.grads[g0..g1]);
+                let dense = || groups.iter().filter(|g| g.is_dense());
+                let (k0, k1) = match (dense().next(), dense().next_back()) {
+                    (Some(f), Some(l)) => (f.stiffness as usize, l.stiffness as usize + 9 * m * m),
+                    _ => (0, 0),
+                };
+                flat.push(
+                    e,
+                    &ids,
+                    groups,
+                    &self.grads[g0..g1],
+                    &self.stiffness[k0..k1],
+                );
                 continue;
             }
             let old_cells = element_cells(mesh, self.cut.as_ref(), e)?;
@@ -1920,6 +2065,7 @@ impl Model {
             shape_ids: flat.shape_ids,
             groups: flat.groups,
             grads: flat.grads,
+            stiffness: flat.stiffness,
             group_element: flat.group_element,
             equation,
             n_free,

@@ -383,6 +383,10 @@ fn the_cut_ends_at_the_front_inside_elements() {
     }
 }
 
+/// The exact corotational tangent with tip DOFs against the whole Jacobian of
+/// the forces by central differences: the sides of tip elements are dense
+/// groups (one rotation for many points) whose forces are the gradient of
+/// their energy, so the Jacobian is symmetric and equals the tangent.
 #[test]
 fn corotational_exact_tangent_with_tip_dofs_matches_central_differences() {
     use nalgebra::{Rotation3, Unit};
@@ -440,25 +444,29 @@ fn corotational_exact_tangent_with_tip_dofs_matches_central_differences() {
             );
             f
         };
-        let mut z_full = vec![0.0; n];
-        let mut z_free = vec![0.0; model.n_free];
-        for (dof, &eq) in model.equation.iter().enumerate() {
-            if eq != xfem_cut::model::NONE {
-                let v = ((dof as f64) * 1.3).cos();
-                z_full[dof] = v;
-                z_free[eq as usize] = v;
+        // The whole Jacobian J of the forces on the free DOFs, column by column.
+        let nf = model.n_free;
+        let dof_of: Vec<usize> = {
+            let mut v = vec![0; nf];
+            for (dof, &eq) in model.equation.iter().enumerate() {
+                if eq != xfem_cut::model::NONE {
+                    v[eq as usize] = dof;
+                }
             }
-        }
-        let h = 1e-6;
-        let shifted = |s: f64| -> Vec<f64> {
-            let dd: Vec<f64> = d.iter().zip(&z_full).map(|(a, b)| a + s * b).collect();
-            forces(&dd)
+            v
         };
-        let (fp, fm) = (shifted(h), shifted(-h));
-        let mut fd = vec![0.0; model.n_free];
-        for (dof, &eq) in model.equation.iter().enumerate() {
-            if eq != xfem_cut::model::NONE {
-                fd[eq as usize] = (fp[dof] - fm[dof]) / (2.0 * h);
+        let h = 1e-6;
+        let mut jac = nalgebra::DMatrix::<f64>::zeros(nf, nf);
+        let mut dd = d.clone();
+        for j in 0..nf {
+            let dof = dof_of[j];
+            dd[dof] = d[dof] + h;
+            let fp = forces(&dd);
+            dd[dof] = d[dof] - h;
+            let fm = forces(&dd);
+            dd[dof] = d[dof];
+            for i in 0..nf {
+                jac[(i, j)] = (fp[dof_of[i]] - fm[dof_of[i]]) / (2.0 * h);
             }
         }
         let mut k = vec![0.0; model.pattern.nnz()];
@@ -474,14 +482,28 @@ fn corotational_exact_tangent_with_tip_dofs_matches_central_differences() {
                 exact_tangent: true,
             },
         );
-        let mut y = vec![0.0; model.n_free];
-        model.pattern.sym_mul_add(&k, &z_free, &mut y);
-        let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
-        let diff: Vec<f64> = y.iter().zip(&fd).map(|(a, b)| a - b).collect();
-        let rel = norm(&diff) / norm(&fd);
+        let mut tangent = nalgebra::DMatrix::<f64>::zeros(nf, nf);
+        let mut e = vec![0.0; nf];
+        let mut y = vec![0.0; nf];
+        for j in 0..nf {
+            e[j] = 1.0;
+            y.fill(0.0);
+            model.pattern.sym_mul_add(&k, &e, &mut y);
+            tangent.set_column(j, &nalgebra::DVector::from_column_slice(&y));
+            e[j] = 0.0;
+        }
+        let symmetric = (&jac + jac.transpose()) * 0.5;
+        let rel = (&tangent - &jac).norm() / jac.norm();
+        let antisymmetric = (&jac - &symmetric).norm() / jac.norm();
+        let dense = model.groups.iter().filter(|g| g.is_dense()).count();
         println!(
-            "{kind:?}: {} groups, exact tangent vs central differences {rel:.2e}",
+            "{kind:?}: {} groups ({dense} dense), tangent vs J of central differences \
+             {rel:.2e}; antisymmetric part of J {antisymmetric:.2e}",
             model.groups.len()
+        );
+        assert!(
+            dense > 0,
+            "{kind:?}: the tip elements' sides are dense groups"
         );
         assert!(rel <= 1e-6, "{kind:?}: {rel:e}");
     }
@@ -709,3 +731,115 @@ fn two_fronts_in_one_element_are_refused_naming_both() {
     println!("{text}");
     assert!(text.contains("cut[0]") && text.contains("cut[1]"), "{text}");
 }
+
+/// A tip element's sides as dense groups (the default) against one point
+/// group per quadrature point ([`Integration::SubTetQuadrature`]): the same
+/// linear tangent, forces and energy to round-off (the dense stiffness is
+/// the points' sum), and corotational static solutions that differ only by
+/// the spread of the rotations over a side, with the same Newton iterations.
+#[test]
+fn dense_tip_groups_are_their_points_summed() {
+    use xfem_cut::assembly::{evaluate, Request, Rotations, Workspace};
+    use xfem_cut::model::Integration;
+    let fr = Front::new();
+    let patch = fr.patch();
+    for kind in [ElementKind::Tet4, ElementKind::Tet10] {
+        let mesh = mesh(3, kind, 0.2);
+        let cut = setup_cut(&mesh, &[CutInput::tip(&patch, 1e-4, Some(0.3))]).unwrap();
+        let fixed: Vec<_> = (0..mesh.n_nodes())
+            .filter(|&i| mesh.nodes[i].z == 0.0)
+            .map(|i| (i, [Some(0.0); 3]))
+            .collect();
+        let build = |formulation, integration| {
+            Model::build_with(
+                ModelInput {
+                    mesh: mesh.clone(),
+                    material: MATERIAL,
+                    formulation,
+                    cut: Some(cut.clone()),
+                    fixed: fixed.clone(),
+                    gravity: Some(Vector3::new(0.3, 0.1, 0.0) * GRAVITY_SCALE),
+                    body_force: None,
+                    tractions: &[],
+                    need_mass: false,
+                },
+                integration,
+            )
+            .unwrap()
+        };
+        let pass = |model: &Model, d: &[f64]| {
+            let mut f = vec![0.0; model.n_dofs()];
+            let mut k = vec![0.0; model.pattern.nnz()];
+            let energy = evaluate(
+                model,
+                d,
+                &mut Rotations::identity(model),
+                &mut Workspace::new(model),
+                Request {
+                    forces: Some(&mut f),
+                    tangent: Some(&mut k),
+                    update_rotations: true,
+                    exact_tangent: true,
+                },
+            );
+            (f, k, energy)
+        };
+        let rel = |a: &[f64], b: &[f64]| {
+            let diff: f64 = a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum();
+            let norm: f64 = b.iter().map(|y| y * y).sum();
+            (diff / norm).sqrt()
+        };
+        let (dense, points) = (
+            build(Formulation::Linear, Integration::Grouped),
+            build(Formulation::Linear, Integration::SubTetQuadrature),
+        );
+        assert_eq!(dense.pattern.nnz(), points.pattern.nnz());
+        let n_dense = dense.groups.iter().filter(|g| g.is_dense()).count();
+        assert!(n_dense > 0 && points.groups.iter().all(|g| !g.is_dense()));
+        let d: Vec<f64> = (0..dense.n_dofs())
+            .map(|k| 0.01 * ((k as f64) * 0.37).sin())
+            .collect();
+        let ((fa, ka, ea), (fb, kb, eb)) = (pass(&dense, &d), pass(&points, &d));
+        let (rf, rk, re) = (rel(&fa, &fb), rel(&ka, &kb), ((ea - eb) / eb).abs());
+        println!(
+            "{kind:?} linear: {} groups ({n_dense} dense) vs {} point groups: \
+             forces {rf:.1e}, tangent {rk:.1e}, energy {re:.1e}",
+            dense.groups.len(),
+            points.groups.len()
+        );
+        assert!(rf <= 1e-12 && rk <= 1e-12 && re <= 1e-12, "{kind:?}");
+
+        let solve = |model: &Model| {
+            let mut chol = Cholesky::new(&model.pattern).unwrap();
+            let opts = StaticOptions {
+                load_steps: 4,
+                ..StaticOptions::default()
+            };
+            solve_static(model, &mut chol, &opts).unwrap()
+        };
+        let (a, b) = (
+            solve(&build(Formulation::Corotational, Integration::Grouped)),
+            solve(&build(
+                Formulation::Corotational,
+                Integration::SubTetQuadrature,
+            )),
+        );
+        let n_nodes = mesh.n_nodes();
+        let largest = b.d[..3 * n_nodes]
+            .iter()
+            .fold(0.0_f64, |m, v| m.max(v.abs()));
+        let r = rel(&a.d[..3 * n_nodes], &b.d[..3 * n_nodes]);
+        println!(
+            "{kind:?} corotational: largest displacement {largest:.3} (box 1), nodal solutions \
+             differ by {r:.1e}; Newton iterations {:?} vs {:?}",
+            a.iterations, b.iterations
+        );
+        assert!(largest > 0.1, "{kind:?}: a large deformation");
+        assert!(r <= 1e-2, "{kind:?}: {r:e}");
+        assert_eq!(a.iterations, b.iterations, "{kind:?}");
+    }
+}
+
+/// Gravity scale of [`dense_tip_groups_are_their_points_summed`]: bends the
+/// unit box clamped at z = 0 by about a fifth of its size.
+const GRAVITY_SCALE: f64 = 0.3;
