@@ -18,12 +18,12 @@
 
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion};
 use std::hint::black_box;
-use xfem_cut::blade::{map_state, same_setup, stiffness_plus_mass, BorderedSolve, CutSet};
+use xfem_cut::blade::{map_state, same_setup, stiffness_plus_mass, CutSet};
 use xfem_cut::cut::CutSetup;
 use xfem_cut::dynamics::{DynamicOptions, Newmark, State};
 use xfem_cut::mesh::TetMesh;
 use xfem_cut::model::{Formulation, Model};
-use xfem_cut::solve::Cholesky;
+use xfem_cut::solve::{BorderedSolve, Cholesky};
 use xfem_cut::study::fixtures::{beam_mesh, seed_beam, seed_blade};
 
 /// The seed's beam on `mesh`, bottom clamped, gravity in +x, with mass.

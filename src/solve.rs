@@ -342,6 +342,11 @@ impl Cholesky {
         })
     }
 
+    /// The pattern of the matrices this factorises.
+    pub fn pattern(&self) -> &Pattern {
+        &self.pattern
+    }
+
     /// Number of non-zeros of the factor L.
     pub fn factor_nnz(&self) -> usize {
         self.l_values.len()
@@ -378,6 +383,250 @@ impl Cholesky {
         let n = b.len();
         let rhs = MatMut::from_column_major_slice_mut(b, n, 1);
         llt.solve_in_place_with_conj(Conj::No, rhs, self.par, MemStack::new(&mut self.solve_mem));
+    }
+
+    /// Solves A X = B in place for `ncols` right-hand sides at once (B
+    /// column-major, n × ncols; B ← X), blocked: cheaper than `ncols` single
+    /// solves. Allocates its scratch (for cut events, not steps).
+    pub fn solve_columns_in_place(&mut self, b: &mut [f64], ncols: usize) {
+        assert!(self.factored, "solve before a successful factorisation");
+        assert_eq!(
+            b.len(),
+            self.pattern.n * ncols,
+            "n × ncols right-hand sides"
+        );
+        let mut mem = MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(ncols, self.par));
+        let llt = LltRef::<usize, f64>::new(&self.symbolic, &self.l_values);
+        let rhs = MatMut::from_column_major_slice_mut(b, self.pattern.n, ncols);
+        llt.solve_in_place_with_conj(Conj::No, rhs, self.par, MemStack::new(&mut mem));
+    }
+}
+
+/// Changes among old equations smaller than this, relative to the geometric
+/// mean of their diagonals, are left out of a [`BorderedSolve`]'s border:
+/// the round-off changes of the standard blocks of newly cut Tet4 (their
+/// side volumes sum to the element's only to round-off).
+pub const BORDER_TOLERANCE: f64 = 1e-13;
+
+/// A bordered solve of a grown system on the factor of an earlier one
+/// (METHODS.md, "Blades": reanalysis for growing cracks): what a linear
+/// scene's steps solve with after cut events that only appended equations,
+/// instead of refactorising.
+///
+/// After cut events without dropped DOFs the new matrix (equations of
+/// `Model::update_cut`: the old ones keep their numbers, new ones are
+/// appended) is A = A₀ + Δ with A₀ = blockdiag(A_old, D), D the diagonal
+/// of A on the new equations, and
+/// Δ = [[E, B], [Bᵀ, C − D]]: E the changes among old equations (the
+/// enriched DOFs of the changed elements), B the coupling of the new
+/// equations to the old ones, C their block. Δ = U W Uᵀ with
+/// U = [P_E, B̂, P_N] (P_E the unit columns of E's equations, B̂ = [B; 0],
+/// P_N those of the new equations) and W = [[E, 0, 0], [0, 0, I], [0, I, C − D]].
+/// With Z = A₀⁻¹U (solves on the old factor, all columns of P_E and B̂ at
+/// once, when the border is built) and G = UᵀZ, A x = b is x = y − Z s,
+/// y = A₀⁻¹b, (I + W G) s = W Uᵀy (Woodbury): one solve on the old factor,
+/// two products with the n × k matrix Z and W and an LU solve of order k
+/// per right-hand side, allocation-free.
+pub struct BorderedSolve {
+    n_old: usize,
+    /// Old equations with changed entries among themselves (E's).
+    changed: Vec<usize>,
+    /// B̂'s columns: (old equation, value) per new equation.
+    coupling: Vec<Vec<(usize, f64)>>,
+    /// D on the new equations (index eq − n_old).
+    diagonal: Vec<f64>,
+    /// Z = A₀⁻¹U, n × k.
+    z: nalgebra::DMatrix<f64>,
+    w: nalgebra::DMatrix<f64>,
+    /// LU of I + W G (none for an empty border).
+    lu: Option<nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>>,
+    /// Scratch of order k: Uᵀy, then s.
+    t: nalgebra::DVector<f64>,
+    s: nalgebra::DVector<f64>,
+}
+
+impl BorderedSolve {
+    /// The bordered solve of the matrix `new_values` (lower CSC on `new`)
+    /// on `chol`, factorised with `old_values` on `old`; `None` where the
+    /// new system is smaller, where a new equation has no positive diagonal
+    /// or where I + W G is singular (refactorise then). The caller vouches
+    /// that the old equations kept their numbers (no DOF dropped since
+    /// `chol` was factorised). Changes among old equations with
+    /// |A − A_old| ≤ `tol` × (the geometric mean of their diagonals) are
+    /// left out of E (0: none; [`BORDER_TOLERANCE`]: round-off): the solve
+    /// is then that of a matrix within `tol` of A.
+    pub fn new(
+        chol: &mut Cholesky,
+        old: &Pattern,
+        old_values: &[f64],
+        new: &Pattern,
+        new_values: &[f64],
+        tol: f64,
+    ) -> Option<BorderedSolve> {
+        let (n_old, n) = (old.n, new.n);
+        if n < n_old {
+            return None;
+        }
+        let k_new = n - n_old;
+        let old_value = |r: usize, c: usize| old.position(r, c).map_or(0.0, |p| old_values[p]);
+        let diagonal_of: Vec<f64> = (0..n)
+            .map(|c| new.position(c, c).map_or(0.0, |p| new_values[p]))
+            .collect();
+        let diagonal = diagonal_of[n_old..].to_vec();
+        if diagonal.iter().any(|&d| d <= 0.0 || !d.is_finite()) {
+            return None;
+        }
+        let (mut e, mut c_minus_d) = (Vec::new(), Vec::new());
+        let mut coupling = vec![Vec::new(); k_new];
+        for c in 0..n {
+            for p in new.col_ptr[c]..new.col_ptr[c + 1] {
+                let (r, v) = (new.row_idx[p], new_values[p]);
+                match (r < n_old, c < n_old) {
+                    (true, true) => {
+                        let d = v - old_value(r, c);
+                        let scale = (diagonal_of[r] * diagonal_of[c]).abs().sqrt();
+                        if d != 0.0 && d.abs() > tol * scale {
+                            e.push((r, c, d));
+                        }
+                    }
+                    (false, true) => coupling[r - n_old].push((c, v)),
+                    (false, false) => {
+                        let d = if r == c { 0.0 } else { v };
+                        if d != 0.0 {
+                            c_minus_d.push((r - n_old, c - n_old, d));
+                        }
+                    }
+                    (true, false) => unreachable!("lower triangle"),
+                }
+            }
+        }
+        // Old entries gone from the new pattern.
+        for c in 0..n_old {
+            for p in old.col_ptr[c]..old.col_ptr[c + 1] {
+                let r = old.row_idx[p];
+                if new.position(r, c).is_none() && old_values[p] != 0.0 {
+                    e.push((r, c, -old_values[p]));
+                }
+            }
+        }
+        let mut changed: Vec<usize> = e.iter().flat_map(|&(r, c, _)| [r, c]).collect();
+        changed.sort_unstable();
+        changed.dedup();
+        let s = changed.len();
+        let k = s + 2 * k_new;
+        let slot = |eq: usize| changed.binary_search(&eq).expect("changed");
+        let mut w = nalgebra::DMatrix::<f64>::zeros(k, k);
+        for &(r, c, d) in &e {
+            let (i, j) = (slot(r), slot(c));
+            w[(i, j)] += d;
+            if i != j {
+                w[(j, i)] += d;
+            }
+        }
+        for j in 0..k_new {
+            w[(s + j, s + k_new + j)] = 1.0;
+            w[(s + k_new + j, s + j)] = 1.0;
+        }
+        for &(r, c, d) in &c_minus_d {
+            let (i, j) = (s + k_new + r, s + k_new + c);
+            w[(i, j)] += d;
+            if i != j {
+                w[(j, i)] += d;
+            }
+        }
+        // Z's columns of P_E and B̂: one blocked solve on the old factor.
+        let m = s + k_new;
+        let mut cols = vec![0.0; n_old * m];
+        for (j, col) in cols.chunks_exact_mut(n_old.max(1)).take(m).enumerate() {
+            if j < s {
+                col[changed[j]] = 1.0;
+            } else {
+                for &(r, v) in &coupling[j - s] {
+                    col[r] = v;
+                }
+            }
+        }
+        if m > 0 && n_old > 0 {
+            chol.solve_columns_in_place(&mut cols, m);
+        }
+        let mut z = nalgebra::DMatrix::<f64>::zeros(n, k);
+        if n_old > 0 {
+            for (j, col) in cols.chunks_exact(n_old).enumerate() {
+                z.view_mut((0, j), (n_old, 1)).copy_from_slice(col);
+            }
+        }
+        for j in 0..k_new {
+            z[(n_old + j, s + k_new + j)] = 1.0 / diagonal[j];
+        }
+        let mut solver = BorderedSolve {
+            n_old,
+            changed,
+            coupling,
+            diagonal,
+            z,
+            w,
+            lu: None,
+            t: nalgebra::DVector::zeros(k),
+            s: nalgebra::DVector::zeros(k),
+        };
+        if k > 0 {
+            let mut g = nalgebra::DMatrix::<f64>::zeros(k, k);
+            let mut t = nalgebra::DVector::zeros(k);
+            for j in 0..k {
+                solver.border_of(solver.z.column(j).as_slice(), &mut t);
+                g.set_column(j, &t);
+            }
+            let lu = (nalgebra::DMatrix::<f64>::identity(k, k) + &solver.w * g).lu();
+            if !lu.is_invertible() {
+                return None;
+            }
+            solver.lu = Some(lu);
+        }
+        Some(solver)
+    }
+
+    /// t = Uᵀ x.
+    fn border_of(&self, x: &[f64], t: &mut nalgebra::DVector<f64>) {
+        let (s, k_new) = (self.changed.len(), self.coupling.len());
+        for (i, &eq) in self.changed.iter().enumerate() {
+            t[i] = x[eq];
+        }
+        for (j, col) in self.coupling.iter().enumerate() {
+            t[s + j] = col.iter().map(|&(r, v)| v * x[r]).sum();
+            t[s + k_new + j] = x[self.n_old + j];
+        }
+    }
+
+    /// Size k of the border (columns of U: changed old, coupling and new equations).
+    pub fn border(&self) -> usize {
+        self.w.nrows()
+    }
+
+    /// Right-hand sides solved on the old factor when the border was built:
+    /// changed old equations + new ones.
+    pub fn event_solves(&self) -> usize {
+        self.changed.len() + self.coupling.len()
+    }
+
+    /// Solves A x = b in place (b ← x) on the old factor `chol`; allocates nothing.
+    pub fn solve_in_place(&mut self, chol: &mut Cholesky, b: &mut [f64]) {
+        let n_old = self.n_old;
+        chol.solve_in_place(&mut b[..n_old]);
+        for (x, d) in b[n_old..].iter_mut().zip(&self.diagonal) {
+            *x /= d;
+        }
+        let Some(lu) = &self.lu else {
+            return;
+        };
+        let mut t = std::mem::take(&mut self.t);
+        self.border_of(b, &mut t);
+        self.s.gemv(1.0, &self.w, &t, 0.0);
+        self.t = t;
+        // I + W G was checked invertible when built.
+        lu.solve_mut(&mut self.s);
+        let n = b.len();
+        let mut x = nalgebra::DVectorViewMut::from_slice(b, n);
+        x.gemv(-1.0, &self.z, &self.s, 1.0);
     }
 }
 
