@@ -857,6 +857,9 @@ pub struct Sweep {
     /// Symbolic and numeric factorisations over the run.
     pub symbolic: usize,
     pub factorisations: usize,
+    /// Borders left between events for a factorisation of their own (their
+    /// steps had cost one: [`crate::dynamics::refresh_after`]).
+    pub refreshed: usize,
     /// Seconds in events, and in steps (each step's Newton solve).
     pub event_seconds: f64,
     pub step_seconds: f64,
@@ -906,7 +909,7 @@ impl std::fmt::Display for Sweep {
         let (bordered, border) = self.bordered_events();
         write!(
             f,
-            "sweep {:.4} → {:.4} s: {} cut events ({} changed the pattern, {} set-ups checked; {} solved bordered on an earlier factor (border up to {}), {} refactorised), DOFs {} → {}, {} symbolic / {} numeric factorisations, {:.3} s in events, {:.3} s checking, {:.3} s in steps, largest energy change at an event {:.1e}",
+            "sweep {:.4} → {:.4} s: {} cut events ({} changed the pattern, {} set-ups checked; {} solved bordered on an earlier factor (border up to {}, {} refactorised later), {} refactorised), DOFs {} → {}, {} symbolic / {} numeric factorisations, {:.3} s in events, {:.3} s checking, {:.3} s in steps, largest energy change at an event {:.1e}",
             self.start,
             self.end,
             self.events.len(),
@@ -914,6 +917,7 @@ impl std::fmt::Display for Sweep {
             self.checks,
             bordered,
             border,
+            self.refreshed,
             self.events.len() - bordered,
             self.dofs_first,
             self.dofs_last,
@@ -961,6 +965,7 @@ pub fn run_dynamic(
     let mut factor = LinearFactor {
         chol: Cholesky::new(&model.pattern)?,
         values: None,
+        border: None,
     };
     sweep.symbolic = 1;
     let linear = model.formulation == crate::model::Formulation::Linear;
@@ -1015,6 +1020,7 @@ pub fn run_dynamic(
         };
         // How the steps after the event solved (the first step decided).
         sweep.symbolic += nm.symbolic_factorisations();
+        sweep.refreshed += nm.refreshes();
         if after_event {
             if let Some(e) = sweep.events.last_mut() {
                 e.border = nm.border();
@@ -1067,7 +1073,11 @@ pub fn run_dynamic(
                 sweep.symbolic += 1;
                 Cholesky::new(&new_model.pattern)?
             };
-            LinearFactor { chol, values: None }
+            LinearFactor {
+                chol,
+                values: None,
+                border: None,
+            }
         };
         let symbolic_seconds = t_symbolic.elapsed().as_secs_f64();
         let event = Event {

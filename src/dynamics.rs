@@ -81,14 +81,49 @@ pub struct LinearFactor {
     /// where it holds something else (a corotational tangent, the mass of
     /// the initial acceleration) or nothing yet.
     pub values: Option<Vec<f64>>,
+    /// The border the integrator solved with on `chol`, if any: the next
+    /// one on the same factor reuses its columns ([`BorderedSolve::grown`]).
+    pub border: Option<BorderedSolve>,
 }
 
 /// The factor a linear step solves on after cut events, and the matrix it holds.
 struct Base {
     pattern: Pattern,
     values: Vec<f64>,
+    /// The previous integrator's border on the same factor.
+    previous: Option<BorderedSolve>,
     /// Built by the first step (`None` before, or where it refactorised).
     solve: Option<BorderedSolve>,
+    /// Solves done on the border, and after how many it is refactorised
+    /// ([`refresh_after`]).
+    steps: usize,
+    refresh_after: usize,
+}
+
+impl Base {
+    fn refresh_due(&self) -> bool {
+        self.solve.is_some() && self.steps >= self.refresh_after
+    }
+}
+
+/// Numeric factorisations cost about this many solves on the factor
+/// (measured on the seed beam by `examples/border_costs.rs`: 12–20 at 1k Tet4, about 12 at 10k).
+const FACTORISATION_IN_SOLVES: usize = 12;
+
+/// Steps after which a border of size k on a factor of order `n` with
+/// `factor_nnz` non-zeros in L has cost the steps about one numeric
+/// factorisation (the ski-rental rule: then refactorise, at most twice the
+/// better choice). A step's product with the n × k matrix Z reads n k
+/// values, a solve 2 nnz(L), but the dense product runs at about half the
+/// solve's speed per value (`examples/border_costs.rs`: +0.2 to +0.9 solves
+/// a step at k = 42–156), so the border is taken to add n k / nnz(L) solves
+/// a step and to pay a factorisation after
+/// nnz(L) · [`FACTORISATION_IN_SOLVES`] / (n k) steps.
+pub fn refresh_after(border: usize, n: usize, factor_nnz: usize) -> usize {
+    if border == 0 {
+        return usize::MAX;
+    }
+    (factor_nnz * FACTORISATION_IN_SOLVES).div_ceil(n.max(1) * border)
 }
 
 /// Mass matrix used in the time integration.
@@ -519,6 +554,10 @@ pub struct Newmark<'m> {
     base: Option<Base>,
     /// Symbolic factorisations done by the integrator (a base it could not border on).
     symbolic: usize,
+    /// Borders left for a factorisation of their own ([`refresh_after`]).
+    refreshed: usize,
+    /// The border built by the first step, if any.
+    built_border: Option<usize>,
     pub state: State,
     /// Strain energy of the current state.
     pub strain_energy: f64,
@@ -579,6 +618,8 @@ impl<'m> Newmark<'m> {
             dx: vec![0.0; model.n_free],
             base: None,
             symbolic: 0,
+            refreshed: 0,
+            built_border: None,
             state: State {
                 time: 0.0,
                 d: vec![0.0; n],
@@ -621,7 +662,10 @@ impl<'m> Newmark<'m> {
                 nm.base = Some(Base {
                     pattern: nm.chol.pattern().clone(),
                     values,
+                    previous: factor.border,
                     solve: None,
+                    steps: 0,
+                    refresh_after: usize::MAX,
                 });
             }
             _ => nm.match_pattern()?,
@@ -662,7 +706,8 @@ impl<'m> Newmark<'m> {
             return false;
         };
         let limit = border_limit(max_border, base.pattern.n, self.chol.factor_nnz());
-        base.solve = BorderedSolve::new(
+        base.solve = BorderedSolve::grown(
+            base.previous.take().as_ref(),
             &mut self.chol,
             &base.pattern,
             &base.values,
@@ -671,15 +716,18 @@ impl<'m> Newmark<'m> {
             BORDER_TOLERANCE,
         )
         .filter(|b| b.border() <= limit);
+        self.built_border = base.solve.as_ref().map(BorderedSolve::border);
+        if let Some(b) = &base.solve {
+            base.refresh_after = refresh_after(b.border(), base.pattern.n, self.chol.factor_nnz());
+        }
         base.solve.is_some()
     }
 
-    /// Size of the border the steps solve with (`None`: on their own factor).
+    /// Size of the border the first step built on the base and the steps
+    /// solved with (until a refresh, [`Newmark::refreshes`]); `None`: they
+    /// solved on their own factor.
     pub fn border(&self) -> Option<usize> {
-        self.base
-            .as_ref()
-            .and_then(|b| b.solve.as_ref())
-            .map(BorderedSolve::border)
+        self.built_border
     }
 
     /// Symbolic factorisations this integrator did ([`Newmark::on_factor`]).
@@ -687,18 +735,24 @@ impl<'m> Newmark<'m> {
         self.symbolic
     }
 
+    /// Times the steps left a border for their own factor ([`refresh_after`]).
+    pub fn refreshes(&self) -> usize {
+        self.refreshed
+    }
+
     /// Ends the integrator, handing its factorisation to the next one across
     /// a cut event ([`Newmark::on_factor`]), with the K_eff it holds.
     pub fn into_factor(self) -> LinearFactor {
         let linear = self.model.formulation == Formulation::Linear;
-        let values = match self.base {
-            Some(base) => Some(base.values),
-            None if linear && self.factored => Some(self.keff),
-            None => None,
+        let (values, border) = match self.base {
+            Some(base) => (Some(base.values), base.solve.or(base.previous)),
+            None if linear && self.factored => (Some(self.keff), None),
+            None => (None, None),
         };
         LinearFactor {
             chol: self.chol,
             values,
+            border,
         }
     }
 
@@ -834,6 +888,12 @@ impl<'m> Newmark<'m> {
         let exact = o.exact_tangent && !linear;
         let step_no = (t_new / o.dt).round() as usize;
         let (factor_start, cg_start) = (self.chol.factorisations, self.pcg.iterations);
+        // A border whose steps have cost a factorisation: refactorise now.
+        if linear && self.base.as_ref().is_some_and(Base::refresh_due) {
+            self.drop_base()?;
+            self.factored = false;
+            self.refreshed += 1;
+        }
         let mut d = self.begin_step(t_new);
         let mut report = StepReport::default();
         // Lagged factor: iterations of this step on the current factor.
@@ -935,9 +995,16 @@ impl<'m> Newmark<'m> {
                         w.relative.fill(Matrix3::identity());
                     }
                 }
-                match self.base.as_mut().and_then(|b| b.solve.as_mut()) {
-                    Some(border) => border.solve_in_place(&mut self.chol, &mut self.r_free),
-                    None => self.chol.solve_in_place(&mut self.r_free),
+                match self.base.as_mut() {
+                    Some(Base {
+                        solve: Some(border),
+                        steps,
+                        ..
+                    }) => {
+                        border.solve_in_place(&mut self.chol, &mut self.r_free);
+                        *steps += 1;
+                    }
+                    _ => self.chol.solve_in_place(&mut self.r_free),
                 }
             }
             for (dof, &eq) in model.equation.iter().enumerate() {

@@ -423,11 +423,14 @@ pub const BORDER_TOLERANCE: f64 = 1e-13;
 /// U = [P_E, B̂, P_N] (P_E the unit columns of E's equations, B̂ = [B; 0],
 /// P_N those of the new equations) and W = [[E, 0, 0], [0, 0, I], [0, I, C − D]].
 /// With Z = A₀⁻¹U (solves on the old factor, all columns of P_E and B̂ at
-/// once, when the border is built) and G = UᵀZ, A x = b is x = y − Z s,
+/// once, when the border is built; a border grown from the previous one on
+/// the same factor solves only its new columns) and G = UᵀZ, A x = b is x = y − Z s,
 /// y = A₀⁻¹b, (I + W G) s = W Uᵀy (Woodbury): one solve on the old factor,
 /// two products with the n × k matrix Z and W and an LU solve of order k
 /// per right-hand side, allocation-free.
 pub struct BorderedSolve {
+    /// Columns of Z solved for when it was built (the others reused).
+    solved: usize,
     n_old: usize,
     /// Old equations with changed entries among themselves (E's).
     changed: Vec<usize>,
@@ -463,12 +466,29 @@ impl BorderedSolve {
         new_values: &[f64],
         tol: f64,
     ) -> Option<BorderedSolve> {
+        BorderedSolve::grown(None, chol, old, old_values, new, new_values, tol)
+    }
+
+    /// [`BorderedSolve::new`] reusing the columns of Z that `previous` (a
+    /// border on the same factor, of an earlier matrix of the same growing
+    /// system) solved for: a changed old equation's unit column always, a
+    /// new equation's coupling column where its coupling is unchanged; only
+    /// the others are solved on the factor.
+    pub fn grown(
+        previous: Option<&BorderedSolve>,
+        chol: &mut Cholesky,
+        old: &Pattern,
+        old_values: &[f64],
+        new: &Pattern,
+        new_values: &[f64],
+        tol: f64,
+    ) -> Option<BorderedSolve> {
         let (n_old, n) = (old.n, new.n);
         if n < n_old {
             return None;
         }
+        let previous = previous.filter(|p| p.n_old == n_old);
         let k_new = n - n_old;
-        let old_value = |r: usize, c: usize| old.position(r, c).map_or(0.0, |p| old_values[p]);
         let diagonal_of: Vec<f64> = (0..n)
             .map(|c| new.position(c, c).map_or(0.0, |p| new_values[p]))
             .collect();
@@ -479,11 +499,28 @@ impl BorderedSolve {
         let (mut e, mut c_minus_d) = (Vec::new(), Vec::new());
         let mut coupling = vec![Vec::new(); k_new];
         for c in 0..n {
+            // The old column beside the new one (rows sorted in both).
+            let (mut q, q_end) = if c < n_old {
+                (old.col_ptr[c], old.col_ptr[c + 1])
+            } else {
+                (0, 0)
+            };
             for p in new.col_ptr[c]..new.col_ptr[c + 1] {
                 let (r, v) = (new.row_idx[p], new_values[p]);
+                // Old entries gone from the new pattern.
+                while q < q_end && old.row_idx[q] < r {
+                    if old_values[q] != 0.0 {
+                        e.push((old.row_idx[q], c, -old_values[q]));
+                    }
+                    q += 1;
+                }
                 match (r < n_old, c < n_old) {
                     (true, true) => {
-                        let d = v - old_value(r, c);
+                        let mut d = v;
+                        if q < q_end && old.row_idx[q] == r {
+                            d -= old_values[q];
+                            q += 1;
+                        }
                         let scale = (diagonal_of[r] * diagonal_of[c]).abs().sqrt();
                         if d != 0.0 && d.abs() > tol * scale {
                             e.push((r, c, d));
@@ -499,13 +536,9 @@ impl BorderedSolve {
                     (true, false) => unreachable!("lower triangle"),
                 }
             }
-        }
-        // Old entries gone from the new pattern.
-        for c in 0..n_old {
-            for p in old.col_ptr[c]..old.col_ptr[c + 1] {
-                let r = old.row_idx[p];
-                if new.position(r, c).is_none() && old_values[p] != 0.0 {
-                    e.push((r, c, -old_values[p]));
+            for q in q..q_end {
+                if old_values[q] != 0.0 {
+                    e.push((old.row_idx[q], c, -old_values[q]));
                 }
             }
         }
@@ -534,24 +567,42 @@ impl BorderedSolve {
                 w[(j, i)] += d;
             }
         }
-        // Z's columns of P_E and B̂: one blocked solve on the old factor.
+        // Z's columns of P_E and B̂: those `previous` has, and one blocked
+        // solve on the old factor for the others.
         let m = s + k_new;
-        let mut cols = vec![0.0; n_old * m];
-        for (j, col) in cols.chunks_exact_mut(n_old.max(1)).take(m).enumerate() {
+        let mut z = nalgebra::DMatrix::<f64>::zeros(n, k);
+        let reused = |j: usize| -> Option<usize> {
+            let p = previous?;
+            let ps = p.changed.len();
             if j < s {
-                col[changed[j]] = 1.0;
+                p.changed.binary_search(&changed[j]).ok()
             } else {
-                for &(r, v) in &coupling[j - s] {
-                    col[r] = v;
-                }
+                let i = j - s;
+                (i < p.coupling.len() && p.coupling[i] == coupling[i]).then_some(ps + i)
+            }
+        };
+        let mut solve = Vec::new();
+        for j in 0..m {
+            match (reused(j), previous) {
+                (Some(pj), Some(p)) => z
+                    .view_mut((0, j), (n_old, 1))
+                    .copy_from(&p.z.view((0, pj), (n_old, 1))),
+                _ => solve.push(j),
             }
         }
-        if m > 0 && n_old > 0 {
-            chol.solve_columns_in_place(&mut cols, m);
-        }
-        let mut z = nalgebra::DMatrix::<f64>::zeros(n, k);
-        if n_old > 0 {
-            for (j, col) in cols.chunks_exact(n_old).enumerate() {
+        if !solve.is_empty() && n_old > 0 {
+            let mut cols = vec![0.0; n_old * solve.len()];
+            for (&j, col) in solve.iter().zip(cols.chunks_exact_mut(n_old)) {
+                if j < s {
+                    col[changed[j]] = 1.0;
+                } else {
+                    for &(r, v) in &coupling[j - s] {
+                        col[r] = v;
+                    }
+                }
+            }
+            chol.solve_columns_in_place(&mut cols, solve.len());
+            for (&j, col) in solve.iter().zip(cols.chunks_exact(n_old)) {
                 z.view_mut((0, j), (n_old, 1)).copy_from_slice(col);
             }
         }
@@ -559,6 +610,7 @@ impl BorderedSolve {
             z[(n_old + j, s + k_new + j)] = 1.0 / diagonal[j];
         }
         let mut solver = BorderedSolve {
+            solved: solve.len(),
             n_old,
             changed,
             coupling,
@@ -602,10 +654,15 @@ impl BorderedSolve {
         self.w.nrows()
     }
 
-    /// Right-hand sides solved on the old factor when the border was built:
-    /// changed old equations + new ones.
+    /// Columns of Z on the old factor: changed old equations + new ones.
     pub fn event_solves(&self) -> usize {
         self.changed.len() + self.coupling.len()
+    }
+
+    /// Those of [`BorderedSolve::event_solves`] solved when it was built
+    /// (the others taken from the previous border, [`BorderedSolve::grown`]).
+    pub fn solved_columns(&self) -> usize {
+        self.solved
     }
 
     /// Solves A x = b in place (b ← x) on the old factor `chol`; allocates nothing.

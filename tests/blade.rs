@@ -135,7 +135,11 @@ fn cut_events_keep_both_energies_and_refactorise_only_there() {
         if formulation == Formulation::Linear {
             // The mass at the start, then one factorisation per model (the
             // first step after each event) unless it solved bordered.
-            assert_eq!(sw.factorisations, 2 + sw.events.len() - bordered);
+            // and after a border refactorised later.
+            assert_eq!(
+                sw.factorisations,
+                2 + sw.events.len() - bordered + sw.refreshed
+            );
         }
         // The steps the sweep index let pass could not have changed the set-up:
         // the events are those of a full check after every step.
@@ -985,7 +989,9 @@ fn sweep_trajectory(
 fn a_bordered_sweep_follows_the_refactorised_trajectory() {
     use xfem_cut::dynamics::EventSolve;
     use xfem_cut::study::fixtures::{beam_mesh, seed_blade};
-    // The seed's blade opening its cut on the beam during [0.1, 0.6] s, then 0.2 s more.
+    // The seed's blade opening its cut on the beam during [0.1, 0.6] s, then
+    // 0.4 s more: long enough after the last event for its border's steps
+    // to cost a factorisation (refactorised then).
     let mesh = beam_mesh([3, 6, 10], false);
     let cuts = seed_blade(0.1, 0.6);
     let probes = [
@@ -998,7 +1004,7 @@ fn a_bordered_sweep_follows_the_refactorised_trajectory() {
     for (mass, rayleigh_stiffness) in [(MassKind::Lumped, 0.0), (MassKind::Consistent, 0.002)] {
         let opts = |event_solve| DynamicOptions {
             dt: 0.01,
-            steps: 80,
+            steps: 100,
             mass,
             rayleigh_stiffness,
             event_solve,
@@ -1022,9 +1028,15 @@ fn a_bordered_sweep_follows_the_refactorised_trajectory() {
             sw_b.events.len(),
             "every event bordered (border up to {border})"
         );
-        // The mass, then one factorisation a model; bordered: the mass and the first K_eff.
+        // The mass, then one factorisation a model; bordered: the mass and
+        // the first K_eff, and one (on the grown pattern) where the border's
+        // steps had cost a factorisation.
         assert_eq!(sw_r.factorisations, 2 + sw_r.events.len());
-        assert_eq!((sw_b.factorisations, sw_b.symbolic), (2, 1));
+        assert_eq!((sw_r.refreshed, sw_b.refreshed), (0, 1));
+        assert_eq!(
+            (sw_b.factorisations, sw_b.symbolic),
+            (2 + sw_b.refreshed, 1 + sw_b.refreshed)
+        );
         let scale = refactorised.iter().map(|u| u.norm()).fold(0.0, f64::max);
         let diff = refactorised
             .iter()
@@ -1074,7 +1086,7 @@ fn a_small_border_limit_refactorises_and_starts_a_new_border() {
         "{n} bordered, {refactorised} refactorised"
     );
     assert!(k <= max_border);
-    assert_eq!(sw.factorisations, 2 + refactorised);
+    assert_eq!(sw.factorisations, 2 + refactorised + sw.refreshed);
     for (e, f) in sw.events.iter().zip(&sw_all.events) {
         if let Some(b) = e.border {
             assert!(
@@ -1092,4 +1104,97 @@ fn a_small_border_limit_refactorises_and_starts_a_new_border() {
             .fold(0.0, f64::max);
         assert!(diff <= 1e-10 * scale, "{:e}", diff / scale);
     }
+}
+
+#[test]
+fn a_border_grown_on_the_same_factor_reuses_its_columns_and_solves_alike() {
+    use xfem_cut::blade::stiffness_plus_mass;
+    use xfem_cut::solve::{BorderedSolve, Cholesky, BORDER_TOLERANCE};
+    use xfem_cut::study::fixtures::{beam_mesh, seed_beam, seed_blade};
+    let mesh = beam_mesh([3, 6, 11], false);
+    let cuts = seed_blade(0.0, 1.0);
+    let c = 1.0 / (0.25 * 0.005f64.powi(2));
+    // One factor (the beam cut to t = 0.2) under every later event's matrix.
+    let base = seed_beam(
+        mesh.clone(),
+        Formulation::Linear,
+        cuts.setup_at(&mesh, 0.2).unwrap(),
+    )
+    .unwrap();
+    let a_base = stiffness_plus_mass(&base, c);
+    let mut chol = Cholesky::new(&base.pattern).unwrap();
+    chol.factorize(&a_base).unwrap();
+    let mut model = seed_beam(
+        mesh.clone(),
+        Formulation::Linear,
+        cuts.setup_at(&mesh, 0.2).unwrap(),
+    )
+    .unwrap();
+    let mut previous: Option<BorderedSolve> = None;
+    let (mut events, mut reused) = (0, 0);
+    for k in 3..=10 {
+        let s = cuts.setup_at(&mesh, 0.1 * k as f64).unwrap();
+        if xfem_cut::blade::same_setup(model.cut.as_ref(), s.as_ref()) {
+            continue;
+        }
+        let (next, stats) = model.update_cut(s).unwrap();
+        assert_eq!(stats.dropped_equations, 0);
+        let a = stiffness_plus_mass(&next, c);
+        let mut direct = Cholesky::new(&next.pattern).unwrap();
+        direct.factorize(&a).unwrap();
+        let b: Vec<f64> = (0..next.n_free)
+            .map(|i| ((i as f64) * 0.37).sin())
+            .collect();
+        let mut y = b.clone();
+        direct.solve_in_place(&mut y);
+        let mut fresh = BorderedSolve::new(
+            &mut chol,
+            &base.pattern,
+            &a_base,
+            &next.pattern,
+            &a,
+            BORDER_TOLERANCE,
+        )
+        .unwrap();
+        let mut grown = BorderedSolve::grown(
+            previous.as_ref(),
+            &mut chol,
+            &base.pattern,
+            &a_base,
+            &next.pattern,
+            &a,
+            BORDER_TOLERANCE,
+        )
+        .unwrap();
+        assert_eq!(grown.border(), fresh.border());
+        assert_eq!(fresh.solved_columns(), fresh.event_solves());
+        let (mut x_fresh, mut x_grown) = (b.clone(), b.clone());
+        fresh.solve_in_place(&mut chol, &mut x_fresh);
+        grown.solve_in_place(&mut chol, &mut x_grown);
+        let (d_fresh, d_grown) = (
+            vector_difference(&y, &x_fresh),
+            vector_difference(&y, &x_grown),
+        );
+        println!(
+            "event {events}: border {} ({} columns, {} solved), vs refactorised: fresh {d_fresh:.1e}, grown {d_grown:.1e}",
+            grown.border(),
+            grown.event_solves(),
+            grown.solved_columns()
+        );
+        assert!(
+            d_fresh <= 1e-11 && d_grown <= 1e-11,
+            "{d_fresh:e} {d_grown:e}"
+        );
+        if previous.is_some() {
+            assert!(grown.solved_columns() < grown.event_solves());
+        }
+        reused += grown.event_solves() - grown.solved_columns();
+        previous = Some(grown);
+        events += 1;
+        model = next;
+    }
+    assert!(
+        events >= 2 && reused > 0,
+        "{events} events, {reused} columns reused"
+    );
 }
