@@ -155,7 +155,7 @@ impl Plan {
                 (false, EventSolve::Bordered { max_border }) => add(
                     "cut events: bordered solve on the last factor",
                     true,
-                    &format!("linear: after an event that only appends equations the steps solve on the previous factor (border k <= min({max_border}, 2 nnz(L)/n)); refactorise beyond, or where DOFs were dropped"),
+                    &format!("linear: after an event that only appends equations the steps solve on the previous factor (border k <= min({max_border}, 2 nnz(L)/n), refactorised once its steps have cost a factorisation); refactorise beyond, or where DOFs were dropped"),
                 ),
                 (false, EventSolve::Refactorise) => add(
                     "cut events: refactorisation",
