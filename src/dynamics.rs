@@ -74,10 +74,11 @@ pub fn border_limit(max_border: usize, n: usize, factor_nnz: usize) -> usize {
 }
 
 /// The default [`EventSolve`]: bordered, k ≤ 256. On the seed blade
-/// (`examples/border_costs.rs`) the set-up of a border of k = 156 on the
-/// 10k Tet4 beam cost 25 ms against 42 ms numeric + 16 ms symbolic, of
-/// k = 156 on the 1k Tet10 beam 18 ms against 39 + 17 ms; whole sweeps
-/// (`examples/sweep_series.rs`) reach k = 48, 234 and 204 on the 1k, 10k
+/// (`examples/border_costs.rs`, one factor under every later event) the
+/// set-up of a Schur border of k = 78 (36 columns solved) on the 10k Tet4
+/// beam cost 34 ms against 56 ms numeric + 19 ms symbolic, of k = 78 (24
+/// solved) on the 1k Tet10 beam 31 ms against 87 + 38 ms; whole sweeps
+/// (`examples/sweep_series.rs`) reach k = 24, 117 and 102 on the 1k, 10k
 /// Tet4 and 1k Tet10 beams.
 pub const DEFAULT_EVENT_SOLVE: EventSolve = EventSolve::Bordered { max_border: 256 };
 
@@ -122,10 +123,12 @@ const FACTORISATION_IN_SOLVES: usize = 12;
 /// `factor_nnz` non-zeros in L has cost the steps about one numeric
 /// factorisation (the ski-rental rule: then refactorise, at most twice the
 /// better choice). A step's product with the n × k matrix Z reads n k
-/// values, a solve 2 nnz(L), but the dense product runs at about half the
-/// solve's speed per value (`examples/border_costs.rs`: +0.2 to +0.9 solves
-/// a step at k = 42–156), so the border is taken to add n k / nnz(L) solves
-/// a step and to pay a factorisation after
+/// values, a solve 2 nnz(L); the dense product may run at half the solve's
+/// speed per value (Woodbury borders, `examples/border_costs.rs`: +0.2 to
+/// +0.9 solves a step at k = 42–156; Schur borders +0.0 to +0.15 at
+/// k = 18–78), so the border is taken to add n k / nnz(L) solves a step
+/// (conservative: it refreshes early rather than late) and to pay a
+/// factorisation after
 /// nnz(L) · [`FACTORISATION_IN_SOLVES`] / (n k) steps.
 pub fn refresh_after(border: usize, n: usize, factor_nnz: usize) -> usize {
     if border == 0 {

@@ -427,7 +427,11 @@ pub const BORDER_TOLERANCE: f64 = 1e-13;
 /// the same factor solves only its new columns) and G = UᵀZ, A x = b is x = y − Z s,
 /// y = A₀⁻¹b, (I + W G) s = W Uᵀy (Woodbury): one solve on the old factor,
 /// two products with the n × k matrix Z and W and an LU solve of order k
-/// per right-hand side, allocation-free.
+/// per right-hand side, allocation-free. Without E (every change among old
+/// equations within `tol`: the usual case of a growing extended front) the
+/// border is the Schur complement of the new equations instead,
+/// S = C − B A_old⁻¹ Bᵀ: x₂ = S⁻¹(b₂ − B y₁), x₁ = y₁ − A_old⁻¹Bᵀ x₂, one
+/// product with an n_old × k_new matrix (half the Woodbury's columns).
 pub struct BorderedSolve {
     /// Columns of Z solved for when it was built (the others reused).
     solved: usize,
@@ -441,8 +445,11 @@ pub struct BorderedSolve {
     /// Z = A₀⁻¹U, n × k.
     z: nalgebra::DMatrix<f64>,
     w: nalgebra::DMatrix<f64>,
-    /// LU of I + W G (none for an empty border).
+    /// LU of I + W G (none for an empty border or a Schur complement).
     lu: Option<nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>>,
+    /// Without changes among old equations (E = 0): the Cholesky factor of
+    /// the Schur complement S = C − B A_old⁻¹ Bᵀ of the new equations.
+    schur: Option<nalgebra::Cholesky<f64, nalgebra::Dyn>>,
     /// Scratch of order k: Uᵀy, then s.
     t: nalgebra::DVector<f64>,
     s: nalgebra::DVector<f64>,
@@ -452,7 +459,8 @@ impl BorderedSolve {
     /// The bordered solve of the matrix `new_values` (lower CSC on `new`)
     /// on `chol`, factorised with `old_values` on `old`; `None` where the
     /// new system is smaller, where a new equation has no positive diagonal
-    /// or where I + W G is singular (refactorise then). The caller vouches
+    /// or where I + W G is singular or S not positive definite (refactorise
+    /// then). The caller vouches
     /// that the old equations kept their numbers (no DOF dropped since
     /// `chol` was factorised). Changes among old equations with
     /// |A − A_old| ≤ `tol` × (the geometric mean of their diagonals) are
@@ -618,9 +626,32 @@ impl BorderedSolve {
             z,
             w,
             lu: None,
+            schur: None,
             t: nalgebra::DVector::zeros(k),
             s: nalgebra::DVector::zeros(k),
         };
+        if s == 0 && k_new > 0 {
+            // No E: S = C − B Z_B, Z_B = A_old⁻¹ Bᵀ (Z's first k_new columns).
+            let mut schur = nalgebra::DMatrix::<f64>::zeros(k_new, k_new);
+            for (i, &d) in solver.diagonal.iter().enumerate() {
+                schur[(i, i)] = d;
+            }
+            for &(r, c, d) in &c_minus_d {
+                schur[(r, c)] += d;
+                if r != c {
+                    schur[(c, r)] += d;
+                }
+            }
+            for (i, col) in solver.coupling.iter().enumerate() {
+                for j in 0..k_new {
+                    schur[(i, j)] -= col.iter().map(|&(r, v)| v * solver.z[(r, j)]).sum::<f64>();
+                }
+            }
+            // Symmetric up to round-off: take its mean.
+            let schur = (&schur + schur.transpose()) * 0.5;
+            solver.schur = Some(schur.cholesky()?);
+            return Some(solver);
+        }
         if k > 0 {
             let mut g = nalgebra::DMatrix::<f64>::zeros(k, k);
             let mut t = nalgebra::DVector::zeros(k);
@@ -649,9 +680,15 @@ impl BorderedSolve {
         }
     }
 
-    /// Size k of the border (columns of U: changed old, coupling and new equations).
+    /// Size k of the border: the columns of Z a solve multiplies by (changed
+    /// old, coupling and new equations; the new equations' coupling only,
+    /// for a Schur complement).
     pub fn border(&self) -> usize {
-        self.w.nrows()
+        if self.schur.is_some() {
+            self.coupling.len()
+        } else {
+            self.w.nrows()
+        }
     }
 
     /// Columns of Z on the old factor: changed old equations + new ones.
@@ -669,6 +706,19 @@ impl BorderedSolve {
     pub fn solve_in_place(&mut self, chol: &mut Cholesky, b: &mut [f64]) {
         let n_old = self.n_old;
         chol.solve_in_place(&mut b[..n_old]);
+        if let Some(schur) = &self.schur {
+            // x₂ = S⁻¹ (b₂ − B y₁), x₁ = y₁ − Z_B x₂.
+            let k_new = self.coupling.len();
+            let mut x2 = self.t.rows_mut(0, k_new);
+            for (j, col) in self.coupling.iter().enumerate() {
+                x2[j] = b[n_old + j] - col.iter().map(|&(r, v)| v * b[r]).sum::<f64>();
+            }
+            schur.solve_mut(&mut x2);
+            b[n_old..].copy_from_slice(x2.as_slice());
+            let mut x1 = nalgebra::DVectorViewMut::from_slice(&mut b[..n_old], n_old);
+            x1.gemv(-1.0, &self.z.view((0, 0), (n_old, k_new)), &x2, 1.0);
+            return;
+        }
         for (x, d) in b[n_old..].iter_mut().zip(&self.diagonal) {
             *x /= d;
         }
