@@ -7,6 +7,10 @@
 //!   (the pattern grows at these events), then the step after it with its
 //!   numeric refactorisation; `event_rebuild`: the same with the model built
 //!   again (the previous code path).
+//! - `event_update_bordered` (linear): what a linear event costs in
+//!   `run_dynamic` now: the set-up, the model update, the state mapped, and
+//!   the step after it on the previous factor ([`Newmark::on_factor`]: the
+//!   border's set-up on it instead of symbolic + numeric factorisation).
 //! - Its phases: `setup`, `update` / `build` (the model), `symbolic`,
 //!   `first_step` (integrator, numeric factorisation and the step's solve).
 //!
@@ -18,12 +22,12 @@
 
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion};
 use std::hint::black_box;
-use xfem_cut::blade::{map_state, same_setup, stiffness_plus_mass, BorderedSolve, CutSet};
+use xfem_cut::blade::{map_state, same_setup, stiffness_plus_mass, CutSet};
 use xfem_cut::cut::CutSetup;
-use xfem_cut::dynamics::{DynamicOptions, Newmark, State};
+use xfem_cut::dynamics::{DynamicOptions, LinearFactor, Newmark, State};
 use xfem_cut::mesh::TetMesh;
 use xfem_cut::model::{Formulation, Model};
-use xfem_cut::solve::Cholesky;
+use xfem_cut::solve::{BorderedSolve, Cholesky};
 use xfem_cut::study::fixtures::{beam_mesh, seed_beam, seed_blade};
 
 /// The seed's beam on `mesh`, bottom clamped, gravity in +x, with mass.
@@ -200,6 +204,32 @@ fn benches(c: &mut Criterion) {
                     first_step(&model_b, symbolic(&model_b), mapped, opts);
                 })
             });
+            if formulation == Formulation::Linear {
+                // The previous integrator's factor (K_eff of model_a), made outside the timing.
+                let factor = || -> LinearFactor {
+                    let mut nm =
+                        Newmark::new(&model_a, Cholesky::new(&model_a.pattern).unwrap(), opts)
+                            .unwrap();
+                    nm.state = state_a.clone();
+                    nm.step().unwrap();
+                    nm.into_factor()
+                };
+                group.bench_function(BenchmarkId::new("event_update_bordered", &name), |b| {
+                    b.iter_batched(
+                        factor,
+                        |f| {
+                            let s = cuts.setup_at(&mesh, t_b).unwrap();
+                            let (model_b, _) = model_a.update_cut(s).unwrap();
+                            let mapped = map_state(&model_a, &model_b, &state_a);
+                            let mut nb = Newmark::on_factor(&model_b, f, opts).unwrap();
+                            nb.state = mapped;
+                            black_box(nb.step().unwrap());
+                            assert!(nb.border().is_some());
+                        },
+                        BatchSize::LargeInput,
+                    )
+                });
+            }
             group.bench_function(BenchmarkId::new("event_rebuild", &name), |b| {
                 b.iter(|| {
                     let s = cuts.setup_at(&mesh, t_b).unwrap();

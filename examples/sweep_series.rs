@@ -3,16 +3,20 @@
 //! (event: a cut event followed the step; event_seconds its own time) and
 //! the sweep's summary on stderr; with `--out DIR` also writes
 //! `DIR/data/sweep_series.csv` and `DIR/sweep_series.svg` ([`xfem_cut::study::sweep`]).
-//! `cargo run --release --example sweep_series -- [NX NY NZ] [linear|corotational] [tet10] [--out reports]`
+//! the sweep's summary and the medians of a step between events and of an
+//! event with the step after it on stderr. `refactorise` solves the linear
+//! steps after events by refactorisation instead of the default bordered
+//! solve on the last factor; `border K` sets the border limit.
+//! `cargo run --release --example sweep_series -- [NX NY NZ] [linear|corotational] [tet10] [refactorise | border K] [--out reports]`
 use xfem_cut::blade::run_dynamic;
-use xfem_cut::dynamics::DynamicOptions;
+use xfem_cut::dynamics::{DynamicOptions, EventSolve, DEFAULT_EVENT_SOLVE};
 use xfem_cut::model::Formulation;
 use xfem_cut::study::fixtures::{beam_mesh, seed_beam, seed_blade};
 use xfem_cut::study::sweep;
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let div: Vec<usize> = args.iter().map_while(|a| a.parse().ok()).collect();
+    let div: Vec<usize> = args.iter().take(3).map_while(|a| a.parse().ok()).collect();
     let div = if div.len() == 3 {
         [div[0], div[1], div[2]]
     } else {
@@ -24,6 +28,18 @@ fn main() {
         Formulation::Linear
     };
     let tet10 = args.iter().any(|a| a == "tet10");
+    let event_solve = if args.iter().any(|a| a == "refactorise") {
+        EventSolve::Refactorise
+    } else if let Some(k) = args
+        .iter()
+        .position(|a| a == "border")
+        .and_then(|k| args.get(k + 1))
+        .and_then(|k| k.parse().ok())
+    {
+        EventSolve::Bordered { max_border: k }
+    } else {
+        DEFAULT_EVENT_SOLVE
+    };
     let out = args
         .iter()
         .position(|a| a == "--out")
@@ -35,6 +51,7 @@ fn main() {
     let opts = DynamicOptions {
         dt: 0.01,
         steps: 70,
+        event_solve,
         ..DynamicOptions::default()
     };
     let run = run_dynamic(&cuts, &mesh, &build, opts, |_, _, _| {}).unwrap();
@@ -70,10 +87,34 @@ fn main() {
         mean(&after),
         mean(&sweep_steps) / mean(&after)
     );
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+    };
+    let step = median(
+        rows.iter()
+            .filter(|r| !r.event)
+            .map(|r| r.step_seconds)
+            .collect(),
+    );
+    // An event with the step after it (its numeric factorisation or border set-up).
+    let event = median(
+        rows.windows(2)
+            .filter(|w| w[0].event)
+            .map(|w| w[0].event_seconds + w[1].step_seconds)
+            .collect(),
+    );
+    eprintln!(
+        "{event_solve:?}: median step {:.4} ms, median event + step after {:.4} ms ({:.1}x)",
+        step * 1e3,
+        event * 1e3,
+        event / step
+    );
     for e in &run.sweep.events {
         eprintln!(
-            "  event after step {} (t = {:.2}): DOFs {} → {}, {} elements integrated again, {:.3e} s (model {:.3e}, symbolic {:.3e})",
-            e.step, e.time, e.dofs_before, e.dofs_after, e.changed_elements, e.seconds, e.model_seconds, e.symbolic_seconds
+            "  event after step {} (t = {:.2}): DOFs {} → {}, {} elements integrated again, {:.3e} s (model {:.3e}, symbolic {:.3e}), then {}",
+            e.step, e.time, e.dofs_before, e.dofs_after, e.changed_elements, e.seconds, e.model_seconds, e.symbolic_seconds,
+            e.border.map_or("refactorised".to_string(), |k| format!("bordered (k = {k})"))
         );
     }
     if let Some(dir) = out {

@@ -16,14 +16,21 @@
 //!   displacement, velocity and acceleration. Since Nᵢ(H − Hᵢ)·0 = 0 (seed
 //!   eq. 58–59) the field, its velocity and both energies are unchanged
 //!   (METHODS.md, "Blades"). The symbolic factorisation is redone only when
-//!   the pattern changed; a linear scene refactorises at events only.
+//!   the pattern changed; a linear scene refactorises at events only, and
+//!   not even there where the events only appended equations: its steps
+//!   then solve on the last factor through a [`BorderedSolve`] until the
+//!   border outgrows [`crate::dynamics::border_limit`] ([`EventSolve`]).
 //! - A static scene takes the completed sweep ([`CutSet::completed`]).
 
 use crate::assembly::Rotations;
 use crate::cut::{setup_cut, CutError, CutInput, CutSetup, CutSurface, FrontMode, PlanarPatch};
-use crate::dynamics::{DynamicError, DynamicOptions, Energies, Newmark, State};
+use crate::dynamics::{
+    DynamicError, DynamicOptions, Energies, EventSolve, LinearFactor, Newmark, State,
+};
 use crate::mesh::TetMesh;
 use crate::model::{Model, ModelError};
+#[cfg(doc)]
+use crate::solve::BorderedSolve;
 use crate::solve::{Cholesky, SolveError};
 use crate::surface::TriangleSurface;
 use nalgebra::{Point3, Vector3};
@@ -822,11 +829,17 @@ pub struct Event {
     /// Energies just before and just after the event (same displacement and velocity).
     pub before: Energies,
     pub after: Energies,
-    /// Whether the sparsity pattern changed (symbolic factorisation redone).
+    /// Whether the sparsity pattern changed (a symbolic factorisation was
+    /// redone, unless the steps solved bordered on the old factor).
     pub pattern_changed: bool,
+    /// The border k of the [`BorderedSolve`] the steps after the event
+    /// solved with on an earlier factor; `None`: refactorised.
+    pub border: Option<usize>,
     /// Elements integrated again ([`Model::update_cut`]).
     pub changed_elements: usize,
-    /// Seconds of the model update and of the symbolic factorisation (both in `seconds`).
+    /// Seconds of the model update and of the symbolic factorisation (both
+    /// in `seconds`; the numeric factorisation or the border's set-up is in
+    /// the next step's time).
     pub model_seconds: f64,
     pub symbolic_seconds: f64,
     /// Seconds spent in the event (set-up, model, state map, symbolic).
@@ -844,6 +857,9 @@ pub struct Sweep {
     /// Symbolic and numeric factorisations over the run.
     pub symbolic: usize,
     pub factorisations: usize,
+    /// Borders left between events for a factorisation of their own (their
+    /// steps had cost one: [`crate::dynamics::refresh_after`]).
+    pub refreshed: usize,
     /// Seconds in events, and in steps (each step's Newton solve).
     pub event_seconds: f64,
     pub step_seconds: f64,
@@ -868,6 +884,15 @@ impl Event {
 }
 
 impl Sweep {
+    /// Events after which the steps solved bordered on an earlier factor,
+    /// and the largest border among them.
+    pub fn bordered_events(&self) -> (usize, usize) {
+        self.events
+            .iter()
+            .filter_map(|e| e.border)
+            .fold((0, 0), |(n, k), b| (n + 1, k.max(b)))
+    }
+
     /// The largest [`Event::energy_jump`] of the sweep (tip → Heaviside
     /// changes are not projected: with a tip front this is where the field changes).
     pub fn largest_energy_jump(&self) -> f64 {
@@ -881,14 +906,19 @@ impl Sweep {
 impl std::fmt::Display for Sweep {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let patterns = self.events.iter().filter(|e| e.pattern_changed).count();
+        let (bordered, border) = self.bordered_events();
         write!(
             f,
-            "sweep {:.4} → {:.4} s: {} cut events ({} changed the pattern, {} set-ups checked), DOFs {} → {}, {} symbolic / {} numeric factorisations, {:.3} s in events, {:.3} s checking, {:.3} s in steps, largest energy change at an event {:.1e}",
+            "sweep {:.4} → {:.4} s: {} cut events ({} changed the pattern, {} set-ups checked; {} solved bordered on an earlier factor (border up to {}, {} refactorised later), {} refactorised), DOFs {} → {}, {} symbolic / {} numeric factorisations, {:.3} s in events, {:.3} s checking, {:.3} s in steps, largest energy change at an event {:.1e}",
             self.start,
             self.end,
             self.events.len(),
             patterns,
             self.checks,
+            bordered,
+            border,
+            self.refreshed,
+            self.events.len() - bordered,
             self.dofs_first,
             self.dofs_last,
             self.symbolic,
@@ -932,12 +962,19 @@ pub fn run_dynamic(
     let index = SweepIndex::new(cuts, mesh);
     let mut model = build(cuts.setup_at(mesh, 0.0)?)?;
     sweep.dofs_first = model.n_dofs();
-    let mut chol = Cholesky::new(&model.pattern)?;
+    let mut factor = LinearFactor {
+        chol: Cholesky::new(&model.pattern)?,
+        values: None,
+        border: None,
+    };
     sweep.symbolic = 1;
+    let linear = model.formulation == crate::model::Formulation::Linear;
+    let bordered = linear && matches!(opts.event_solve, EventSolve::Bordered { .. });
     let mut carried: Option<(State, Event)> = None;
     let mut step = 0;
     loop {
-        let mut nm = Newmark::new(&model, chol, opts)?;
+        let mut nm = Newmark::on_factor(&model, factor, opts)?;
+        let after_event = carried.is_some();
         // A reused factorisation keeps counting: count this model's part only.
         let counted = nm.factorisations();
         match carried.take() {
@@ -981,6 +1018,14 @@ pub fn run_dynamic(
                 break Some(s);
             }
         };
+        // How the steps after the event solved (the first step decided).
+        sweep.symbolic += nm.symbolic_factorisations();
+        sweep.refreshed += nm.refreshes();
+        if after_event {
+            if let Some(e) = sweep.events.last_mut() {
+                e.border = nm.border();
+            }
+        }
         let Some(setup) = grown else {
             sweep.factorisations += nm.factorisations() - counted;
             let state = nm.state.clone();
@@ -996,28 +1041,43 @@ pub fn run_dynamic(
         let before = nm.energies();
         sweep.factorisations += nm.factorisations() - counted;
         let state = nm.state.clone();
-        let old_chol = nm.into_cholesky();
+        let old = nm.into_factor();
         let t_model = Instant::now();
         // Only the elements the grown cut changed are integrated again
-        // (a model with a varying body force is built again).
-        let (new_model, changed_elements) = if model.body_force {
+        // (a model with a varying body force is built again: its equations
+        // are numbered afresh).
+        let (new_model, changed_elements, renumbered) = if model.body_force {
             let m = build(setup)?;
             let n = m.mesh.n_elements();
-            (m, n)
+            (m, n, true)
         } else {
             let (m, stats) = model.update_cut(setup)?;
-            (m, stats.changed_elements)
+            (m, stats.changed_elements, stats.dropped_equations > 0)
         };
         let model_seconds = t_model.elapsed().as_secs_f64();
         let mapped = map_state(&model, &new_model, &state);
         let pattern_changed = new_model.pattern.col_ptr != model.pattern.col_ptr
             || new_model.pattern.row_idx != model.pattern.row_idx;
         let t_symbolic = Instant::now();
-        chol = if pattern_changed {
-            sweep.symbolic += 1;
-            Cholesky::new(&new_model.pattern)?
+        // Equations only appended since the factor: the next steps may solve
+        // on it (bordered); otherwise a factor of the new pattern.
+        factor = if bordered && !renumbered && old.values.is_some() {
+            old
         } else {
-            old_chol
+            let p = old.chol.pattern();
+            let same =
+                p.col_ptr == new_model.pattern.col_ptr && p.row_idx == new_model.pattern.row_idx;
+            let chol = if same {
+                old.chol
+            } else {
+                sweep.symbolic += 1;
+                Cholesky::new(&new_model.pattern)?
+            };
+            LinearFactor {
+                chol,
+                values: None,
+                border: None,
+            }
         };
         let symbolic_seconds = t_symbolic.elapsed().as_secs_f64();
         let event = Event {
@@ -1030,6 +1090,7 @@ pub fn run_dynamic(
             before,
             after: Energies::default(),
             pattern_changed,
+            border: None,
             changed_elements,
             model_seconds,
             symbolic_seconds,
@@ -1037,213 +1098,6 @@ pub fn run_dynamic(
         };
         model = new_model;
         carried = Some((mapped, event));
-    }
-}
-
-/// A bordered solve of a grown linear system on the factor of the old one
-/// (METHODS.md, "Blades": reanalysis for growing cracks), measured against
-/// refactorisation in `benches/blade.rs`.
-///
-/// After a cut event without dropped DOFs the new matrix (equations of
-/// [`Model::update_cut`]: the old ones keep their numbers, new ones are
-/// appended) is A = A₀ + Δ with A₀ = blockdiag(A_old, D), D the diagonal
-/// of A on the new equations, and
-/// Δ = [[E, B], [Bᵀ, C − D]]: E the changes among old equations (the
-/// enriched DOFs of the changed elements), B the coupling of the new
-/// equations to the old ones, C their block. Δ = U W Uᵀ with
-/// U = [P_E, B̂, P_N] (P_E the unit columns of E's equations, B̂ = [B; 0],
-/// P_N those of the new equations) and W = [[E, 0, 0], [0, 0, I], [0, I, C − D]].
-/// With Z = A₀⁻¹U (one solve on the old factor per column of P_E and B̂,
-/// once per event) and G = UᵀZ, A x = b is x = y − Z s, y = A₀⁻¹b,
-/// (I + W G) s = W Uᵀy (Woodbury): one solve on the old factor and a dense
-/// solve of the border per right-hand side.
-pub struct BorderedSolve {
-    n_old: usize,
-    /// Old equations with changed entries among themselves (E's).
-    changed: Vec<usize>,
-    /// B̂'s columns: (old equation, value) per new equation.
-    coupling: Vec<Vec<(usize, f64)>>,
-    /// D on the new equations (index eq − n_old).
-    diagonal: Vec<f64>,
-    /// Z = A₀⁻¹U, n × k.
-    z: nalgebra::DMatrix<f64>,
-    w: nalgebra::DMatrix<f64>,
-    /// LU of I + W G (none for an empty border).
-    lu: Option<nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>>,
-    /// Scratch of the old equations.
-    old: Vec<f64>,
-}
-
-impl BorderedSolve {
-    /// The bordered solve of the matrix `new_values` (lower CSC on `new`)
-    /// on `chol`, factorised with `old_values` on `old`; `None` where the
-    /// new system dropped or renumbered old equations (refactorise then).
-    /// Changes among old equations with |A − A_old| ≤ `tol` × (the
-    /// geometric mean of their diagonals) are left out of E (0: none; 1e-13
-    /// leaves out the round-off changes of the standard blocks of newly cut
-    /// Tet4, whose side volumes sum to the element's only to round-off: the
-    /// solve is then that of a matrix within `tol` of A).
-    pub fn new(
-        chol: &mut Cholesky,
-        old: &crate::solve::Pattern,
-        old_values: &[f64],
-        new: &crate::solve::Pattern,
-        new_values: &[f64],
-        tol: f64,
-    ) -> Option<BorderedSolve> {
-        let (n_old, n) = (old.n, new.n);
-        if n < n_old {
-            return None;
-        }
-        let k_new = n - n_old;
-        let old_value = |r: usize, c: usize| old.position(r, c).map_or(0.0, |p| old_values[p]);
-        let diagonal_of: Vec<f64> = (0..n)
-            .map(|c| new.position(c, c).map_or(0.0, |p| new_values[p]))
-            .collect();
-        let diagonal = diagonal_of[n_old..].to_vec();
-        if diagonal.iter().any(|&d| d <= 0.0) {
-            return None;
-        }
-        let (mut e, mut c_minus_d) = (Vec::new(), Vec::new());
-        let mut coupling = vec![Vec::new(); k_new];
-        for c in 0..n {
-            for p in new.col_ptr[c]..new.col_ptr[c + 1] {
-                let (r, v) = (new.row_idx[p], new_values[p]);
-                match (r < n_old, c < n_old) {
-                    (true, true) => {
-                        let d = v - old_value(r, c);
-                        let scale = (diagonal_of[r] * diagonal_of[c]).abs().sqrt();
-                        if d != 0.0 && d.abs() > tol * scale {
-                            e.push((r, c, d));
-                        }
-                    }
-                    (false, true) => coupling[r - n_old].push((c, v)),
-                    (false, false) => {
-                        let d = if r == c { 0.0 } else { v };
-                        if d != 0.0 {
-                            c_minus_d.push((r - n_old, c - n_old, d));
-                        }
-                    }
-                    (true, false) => unreachable!("lower triangle"),
-                }
-            }
-        }
-        // Old entries gone from the new pattern.
-        for c in 0..n_old {
-            for p in old.col_ptr[c]..old.col_ptr[c + 1] {
-                let r = old.row_idx[p];
-                if new.position(r, c).is_none() && old_values[p] != 0.0 {
-                    e.push((r, c, -old_values[p]));
-                }
-            }
-        }
-        let mut changed: Vec<usize> = e.iter().flat_map(|&(r, c, _)| [r, c]).collect();
-        changed.sort_unstable();
-        changed.dedup();
-        let s = changed.len();
-        let k = s + 2 * k_new;
-        let slot = |eq: usize| changed.binary_search(&eq).expect("changed");
-        let mut w = nalgebra::DMatrix::<f64>::zeros(k, k);
-        for &(r, c, d) in &e {
-            let (i, j) = (slot(r), slot(c));
-            w[(i, j)] += d;
-            if i != j {
-                w[(j, i)] += d;
-            }
-        }
-        for j in 0..k_new {
-            w[(s + j, s + k_new + j)] = 1.0;
-            w[(s + k_new + j, s + j)] = 1.0;
-        }
-        for &(r, c, d) in &c_minus_d {
-            let (i, j) = (s + k_new + r, s + k_new + c);
-            w[(i, j)] += d;
-            if i != j {
-                w[(j, i)] += d;
-            }
-        }
-        let mut z = nalgebra::DMatrix::<f64>::zeros(n, k);
-        let mut col = vec![0.0; n_old];
-        for j in 0..s + k_new {
-            col.fill(0.0);
-            if j < s {
-                col[changed[j]] = 1.0;
-            } else {
-                for &(r, v) in &coupling[j - s] {
-                    col[r] = v;
-                }
-            }
-            chol.solve_in_place(&mut col);
-            z.view_mut((0, j), (n_old, 1)).copy_from_slice(&col);
-        }
-        for j in 0..k_new {
-            z[(n_old + j, s + k_new + j)] = 1.0 / diagonal[j];
-        }
-        let mut solver = BorderedSolve {
-            n_old,
-            changed,
-            coupling,
-            diagonal,
-            z,
-            w,
-            lu: None,
-            old: vec![0.0; n_old],
-        };
-        if k > 0 {
-            let mut g = nalgebra::DMatrix::<f64>::zeros(k, k);
-            for j in 0..k {
-                let t = solver.border_of(solver.z.column(j).as_slice());
-                g.set_column(j, &t);
-            }
-            solver.lu = Some((nalgebra::DMatrix::<f64>::identity(k, k) + &solver.w * g).lu());
-        }
-        Some(solver)
-    }
-
-    /// Uᵀ x.
-    fn border_of(&self, x: &[f64]) -> nalgebra::DVector<f64> {
-        let (s, k_new) = (self.changed.len(), self.coupling.len());
-        nalgebra::DVector::from_fn(s + 2 * k_new, |i, _| {
-            if i < s {
-                x[self.changed[i]]
-            } else if i < s + k_new {
-                self.coupling[i - s].iter().map(|&(r, v)| v * x[r]).sum()
-            } else {
-                x[self.n_old + i - s - k_new]
-            }
-        })
-    }
-
-    /// Size of the border (columns of U: changed old, coupling and new equations).
-    pub fn border(&self) -> usize {
-        self.w.nrows()
-    }
-
-    /// Solves on the old factor per event: changed old equations + new ones.
-    pub fn event_solves(&self) -> usize {
-        self.changed.len() + self.coupling.len()
-    }
-
-    /// Solves A x = b in place (b ← x) on the old factor `chol`.
-    pub fn solve_in_place(&mut self, chol: &mut Cholesky, b: &mut [f64]) {
-        let n_old = self.n_old;
-        self.old.copy_from_slice(&b[..n_old]);
-        chol.solve_in_place(&mut self.old);
-        b[..n_old].copy_from_slice(&self.old);
-        for (x, d) in b[n_old..].iter_mut().zip(&self.diagonal) {
-            *x /= d;
-        }
-        let Some(lu) = &self.lu else {
-            return;
-        };
-        let t = self.border_of(b);
-        let s = lu
-            .solve(&(&self.w * t))
-            .unwrap_or_else(|| nalgebra::DVector::zeros(self.w.nrows()));
-        let zs = &self.z * s;
-        for (x, v) in b.iter_mut().zip(zs.iter()) {
-            *x -= v;
-        }
     }
 }
 

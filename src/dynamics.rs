@@ -21,7 +21,7 @@ use crate::assembly::{
 };
 use crate::corotation::polar_rotation;
 use crate::model::{Formulation, Model, NONE};
-use crate::solve::{Cholesky, Pcg, SolveError};
+use crate::solve::{BorderedSolve, Cholesky, Pattern, Pcg, SolveError, BORDER_TOLERANCE};
 use crate::statics::norm;
 use nalgebra::{Matrix3, Vector3};
 
@@ -47,6 +47,94 @@ pub enum LinearSolver {
     /// a step. An iteration without refactorisation assembles no tangent:
     /// forces, residual and two triangular solves.
     Lagged { every: usize, refactor_after: usize },
+}
+
+/// How a linear scene's first step after a cut event solves its grown K_eff
+/// (`blade::run_dynamic` hands the integrator the factor of the previous one).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EventSolve {
+    /// Refactorise (numeric; symbolic too where the pattern grew).
+    Refactorise,
+    /// Where the events since the factor only appended equations, solve on
+    /// that factor through a [`BorderedSolve`] while its border k stays
+    /// within [`border_limit`] (`max_border` and 2 nnz(L) / n); refactorise
+    /// otherwise (dropped DOFs, a tip front whose branch functions change
+    /// most old equations, a border too large), and start the next border
+    /// from the new factor. A border whose steps have cost a factorisation
+    /// ([`refresh_after`]) is refactorised at the next step.
+    Bordered { max_border: usize },
+}
+
+/// The largest border a [`EventSolve::Bordered`] builds on a factor of order
+/// `n` with `factor_nnz` non-zeros in L: its product with the n × k matrix
+/// Z reads n k values a step, at most what a solve on the factor reads
+/// (2 nnz(L)), so k ≤ 2 nnz(L) / n; and `max_border`.
+pub fn border_limit(max_border: usize, n: usize, factor_nnz: usize) -> usize {
+    max_border.min(2 * factor_nnz / n.max(1))
+}
+
+/// The default [`EventSolve`]: bordered, k ≤ 256. On the seed blade
+/// (`examples/border_costs.rs`, one factor under every later event) the
+/// set-up of a Schur border of k = 78 (36 columns solved) on the 10k Tet4
+/// beam cost 34 ms against 56 ms numeric + 19 ms symbolic, of k = 78 (24
+/// solved) on the 1k Tet10 beam 31 ms against 87 + 38 ms; whole sweeps
+/// (`examples/sweep_series.rs`) reach k = 24, 117 and 102 on the 1k, 10k
+/// Tet4 and 1k Tet10 beams.
+pub const DEFAULT_EVENT_SOLVE: EventSolve = EventSolve::Bordered { max_border: 256 };
+
+/// A linear integrator's factorisation handed across a cut event
+/// ([`Newmark::into_factor`], [`Newmark::on_factor`]).
+pub struct LinearFactor {
+    pub chol: Cholesky,
+    /// The K_eff that `chol` holds (lower CSC on `chol.pattern()`); `None`
+    /// where it holds something else (a corotational tangent, the mass of
+    /// the initial acceleration) or nothing yet.
+    pub values: Option<Vec<f64>>,
+    /// The border the integrator solved with on `chol`, if any: the next
+    /// one on the same factor reuses its columns ([`BorderedSolve::grown`]).
+    pub border: Option<BorderedSolve>,
+}
+
+/// The factor a linear step solves on after cut events, and the matrix it holds.
+struct Base {
+    pattern: Pattern,
+    values: Vec<f64>,
+    /// The previous integrator's border on the same factor.
+    previous: Option<BorderedSolve>,
+    /// Built by the first step (`None` before, or where it refactorised).
+    solve: Option<BorderedSolve>,
+    /// Solves done on the border, and after how many it is refactorised
+    /// ([`refresh_after`]).
+    steps: usize,
+    refresh_after: usize,
+}
+
+impl Base {
+    fn refresh_due(&self) -> bool {
+        self.solve.is_some() && self.steps >= self.refresh_after
+    }
+}
+
+/// Numeric factorisations cost about this many solves on the factor
+/// (measured on the seed beam by `examples/border_costs.rs`: 12–20 at 1k Tet4, about 12 at 10k).
+const FACTORISATION_IN_SOLVES: usize = 12;
+
+/// Steps after which a border of size k on a factor of order `n` with
+/// `factor_nnz` non-zeros in L has cost the steps about one numeric
+/// factorisation (the ski-rental rule: then refactorise, at most twice the
+/// better choice). A step's product with the n × k matrix Z reads n k
+/// values, a solve 2 nnz(L); the dense product may run at half the solve's
+/// speed per value (Woodbury borders, `examples/border_costs.rs`: +0.2 to
+/// +0.9 solves a step at k = 42–156; Schur borders +0.0 to +0.15 at
+/// k = 18–78), so the border is taken to add n k / nnz(L) solves a step
+/// (conservative: it refreshes early rather than late) and to pay a
+/// factorisation after
+/// nnz(L) · [`FACTORISATION_IN_SOLVES`] / (n k) steps.
+pub fn refresh_after(border: usize, n: usize, factor_nnz: usize) -> usize {
+    if border == 0 {
+        return usize::MAX;
+    }
+    (factor_nnz * FACTORISATION_IN_SOLVES).div_ceil(n.max(1) * border)
 }
 
 /// Mass matrix used in the time integration.
@@ -78,6 +166,9 @@ pub struct DynamicOptions {
     /// R K Rᵀ in an iteration where that is not positive definite; false:
     /// R K Rᵀ throughout (the seed's).
     pub exact_tangent: bool,
+    /// Linear scenes: how the first step after a cut event solves (a
+    /// scene's default: [`DEFAULT_EVENT_SOLVE`]).
+    pub event_solve: EventSolve,
 }
 
 impl Default for DynamicOptions {
@@ -95,6 +186,7 @@ impl Default for DynamicOptions {
             max_iterations: 20,
             linear_solver: LinearSolver::Direct,
             exact_tangent: true,
+            event_solve: DEFAULT_EVENT_SOLVE,
         }
     }
 }
@@ -469,6 +561,14 @@ pub struct Newmark<'m> {
     pcg: Pcg,
     warp: Option<Warp>,
     dx: Vec<f64>,
+    /// Linear, after a cut event: the previous factor and its matrix.
+    base: Option<Base>,
+    /// Symbolic factorisations done by the integrator (a base it could not border on).
+    symbolic: usize,
+    /// Borders left for a factorisation of their own ([`refresh_after`]).
+    refreshed: usize,
+    /// The border built by the first step, if any.
+    built_border: Option<usize>,
     pub state: State,
     /// Strain energy of the current state.
     pub strain_energy: f64,
@@ -527,6 +627,10 @@ impl<'m> Newmark<'m> {
             warp: matches!(opts.linear_solver, LinearSolver::WarpedPcg { .. })
                 .then(|| Warp::new(model)),
             dx: vec![0.0; model.n_free],
+            base: None,
+            symbolic: 0,
+            refreshed: 0,
+            built_border: None,
             state: State {
                 time: 0.0,
                 d: vec![0.0; n],
@@ -550,8 +654,123 @@ impl<'m> Newmark<'m> {
         &self.opts
     }
 
+    /// Starts at rest on the factor of an earlier integrator on the same mesh
+    /// (a cut event: `factor` holds the previous K_eff, maybe on a smaller
+    /// pattern). A linear scene with [`EventSolve::Bordered`] keeps it and
+    /// its first step solves the grown K_eff on it ([`BorderedSolve`]) where
+    /// it can; otherwise the symbolic factorisation is redone here where the
+    /// pattern differs. The caller vouches that the old equations kept their
+    /// numbers when it passes `values`.
+    pub fn on_factor(
+        model: &'m Model,
+        factor: LinearFactor,
+        opts: DynamicOptions,
+    ) -> Result<Newmark<'m>, DynamicError> {
+        let mut nm = Newmark::new(model, factor.chol, opts)?;
+        let bordered = matches!(opts.event_solve, EventSolve::Bordered { .. });
+        match factor.values {
+            Some(values) if bordered && model.formulation == Formulation::Linear => {
+                nm.base = Some(Base {
+                    pattern: nm.chol.pattern().clone(),
+                    values,
+                    previous: factor.border,
+                    solve: None,
+                    steps: 0,
+                    refresh_after: usize::MAX,
+                });
+            }
+            _ => nm.match_pattern()?,
+        }
+        Ok(nm)
+    }
+
+    /// Drops the base, if any, and with it the factor's old pattern.
+    fn drop_base(&mut self) -> Result<(), SolveError> {
+        if self.base.take().is_some() {
+            self.match_pattern()?;
+        }
+        Ok(())
+    }
+
+    /// Makes the factorisation one of the model's pattern (symbolic analysis
+    /// redone where it differs; the counter kept).
+    fn match_pattern(&mut self) -> Result<(), SolveError> {
+        let p = self.chol.pattern();
+        let same =
+            p.col_ptr == self.model.pattern.col_ptr && p.row_idx == self.model.pattern.row_idx;
+        if !same {
+            let counted = self.chol.factorisations;
+            self.chol = Cholesky::new(&self.model.pattern)?;
+            self.chol.factorisations = counted;
+            self.symbolic += 1;
+        }
+        Ok(())
+    }
+
+    /// The first step's bordered solve on the base ([`Newmark::on_factor`]),
+    /// if the grown K_eff allows one within the border limit.
+    fn try_border(&mut self) -> bool {
+        let EventSolve::Bordered { max_border } = self.opts.event_solve else {
+            return false;
+        };
+        let Some(base) = self.base.as_mut() else {
+            return false;
+        };
+        let limit = border_limit(max_border, base.pattern.n, self.chol.factor_nnz());
+        base.solve = BorderedSolve::grown(
+            base.previous.take().as_ref(),
+            &mut self.chol,
+            &base.pattern,
+            &base.values,
+            &self.model.pattern,
+            &self.keff,
+            BORDER_TOLERANCE,
+        )
+        .filter(|b| b.border() <= limit);
+        self.built_border = base.solve.as_ref().map(BorderedSolve::border);
+        if let Some(b) = &base.solve {
+            base.refresh_after = refresh_after(b.border(), base.pattern.n, self.chol.factor_nnz());
+        }
+        base.solve.is_some()
+    }
+
+    /// Size of the border the first step built on the base and the steps
+    /// solved with (until a refresh, [`Newmark::refreshes`]); `None`: they
+    /// solved on their own factor.
+    pub fn border(&self) -> Option<usize> {
+        self.built_border
+    }
+
+    /// Symbolic factorisations this integrator did ([`Newmark::on_factor`]).
+    pub fn symbolic_factorisations(&self) -> usize {
+        self.symbolic
+    }
+
+    /// Times the steps left a border for their own factor ([`refresh_after`]).
+    pub fn refreshes(&self) -> usize {
+        self.refreshed
+    }
+
+    /// Ends the integrator, handing its factorisation to the next one across
+    /// a cut event ([`Newmark::on_factor`]), with the K_eff it holds.
+    pub fn into_factor(self) -> LinearFactor {
+        let linear = self.model.formulation == Formulation::Linear;
+        let (values, border) = match self.base {
+            Some(base) => (Some(base.values), base.solve.or(base.previous)),
+            None if linear && self.factored => (Some(self.keff), None),
+            None => (None, None),
+        };
+        LinearFactor {
+            chol: self.chol,
+            values,
+            border,
+        }
+    }
+
     /// Ends the integrator, handing back its factorisation (symbolic analysis
-    /// and buffers) to start another on the same pattern without redoing them.
+    /// and buffers) to start another on the same pattern without redoing them
+    /// (after [`Newmark::on_factor`] with a border: the factor of the base's
+    /// pattern, not the model's; [`Newmark::into_factor`] says which).
     pub fn into_cholesky(self) -> Cholesky {
         self.chol
     }
@@ -585,6 +804,7 @@ impl<'m> Newmark<'m> {
         gather_free(model, &self.r_full, &mut self.r_free);
         // M a = r on the free DOFs: M on the pattern (the lumped one has
         // u–a couplings at enriched nodes), factorised once for this.
+        self.drop_base()?;
         self.keff.fill(0.0);
         self.mass.add_to(model, 1.0, &mut self.keff);
         // Zero-mass DOFs (none in practice) would make M singular: give them unit mass.
@@ -681,6 +901,12 @@ impl<'m> Newmark<'m> {
         let exact = o.exact_tangent && !linear;
         let step_no = (t_new / o.dt).round() as usize;
         let (factor_start, cg_start) = (self.chol.factorisations, self.pcg.iterations);
+        // A border whose steps have cost a factorisation: refactorise now.
+        if linear && self.base.as_ref().is_some_and(Base::refresh_due) {
+            self.drop_base()?;
+            self.factored = false;
+            self.refreshed += 1;
+        }
         let mut d = self.begin_step(t_new);
         let mut report = StepReport::default();
         // Lagged factor: iterations of this step on the current factor.
@@ -757,7 +983,10 @@ impl<'m> Newmark<'m> {
                 self.r_free.copy_from_slice(&self.dx);
             }
             if !solved {
-                if need_tangent {
+                // Linear after a cut event: on the old factor where it borders.
+                let bordered = need_tangent && linear && self.try_border();
+                if need_tangent && !bordered {
+                    self.drop_base()?;
                     match self.chol.factorize(&self.keff) {
                         Err(SolveError::NotPositiveDefinite) if exact => {
                             // Away from a stable state (compression, buckling)
@@ -769,6 +998,8 @@ impl<'m> Newmark<'m> {
                         }
                         other => other?,
                     }
+                }
+                if need_tangent {
                     self.factored = true;
                     self.steps_since_factor = 0;
                     on_this_factor = 0;
@@ -777,7 +1008,17 @@ impl<'m> Newmark<'m> {
                         w.relative.fill(Matrix3::identity());
                     }
                 }
-                self.chol.solve_in_place(&mut self.r_free);
+                match self.base.as_mut() {
+                    Some(Base {
+                        solve: Some(border),
+                        steps,
+                        ..
+                    }) => {
+                        border.solve_in_place(&mut self.chol, &mut self.r_free);
+                        *steps += 1;
+                    }
+                    _ => self.chol.solve_in_place(&mut self.r_free),
+                }
             }
             for (dof, &eq) in model.equation.iter().enumerate() {
                 if eq != NONE {

@@ -1,7 +1,7 @@
 //! What a run does, and what it skips and why: built from the options the run
 //! actually uses (mass kind, linear solver, formulation, analysis).
 
-use crate::dynamics::{LinearSolver, MassKind};
+use crate::dynamics::{EventSolve, LinearSolver, MassKind};
 use crate::model::{Formulation, Model};
 use crate::scene::{Analysis, BodyGeometry, Scene};
 use std::fmt;
@@ -145,6 +145,29 @@ impl Plan {
                 true,
                 "exact corotational tangent (rotation derivative included) changes",
             ),
+        }
+        let blades = scene
+            .cuts
+            .iter()
+            .any(|c| matches!(c.geometry, crate::scene::CutGeometry::Blade { .. }));
+        if let (true, Some(o)) = (blades, dynamic) {
+            match (corot, o.event_solve) {
+                (false, EventSolve::Bordered { max_border }) => add(
+                    "cut events: bordered solve on the last factor",
+                    true,
+                    &format!("linear: after an event that only appends equations the steps solve on the previous factor (border k <= min({max_border}, 2 nnz(L)/n), refactorised once its steps have cost a factorisation); refactorise beyond, or where DOFs were dropped"),
+                ),
+                (false, EventSolve::Refactorise) => add(
+                    "cut events: refactorisation",
+                    true,
+                    "linear: K_eff refactorised at the first step after each event",
+                ),
+                (true, _) => add(
+                    "cut events: bordered solve on the last factor",
+                    false,
+                    "corotational: the tangent is refactorised every iteration anyway",
+                ),
+            }
         }
         add(
             "Newton load steps",

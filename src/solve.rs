@@ -342,6 +342,11 @@ impl Cholesky {
         })
     }
 
+    /// The pattern of the matrices this factorises.
+    pub fn pattern(&self) -> &Pattern {
+        &self.pattern
+    }
+
     /// Number of non-zeros of the factor L.
     pub fn factor_nnz(&self) -> usize {
         self.l_values.len()
@@ -378,6 +383,357 @@ impl Cholesky {
         let n = b.len();
         let rhs = MatMut::from_column_major_slice_mut(b, n, 1);
         llt.solve_in_place_with_conj(Conj::No, rhs, self.par, MemStack::new(&mut self.solve_mem));
+    }
+
+    /// Solves A X = B in place for `ncols` right-hand sides at once (B
+    /// column-major, n × ncols; B ← X), blocked: cheaper than `ncols` single
+    /// solves. Allocates its scratch (for cut events, not steps).
+    pub fn solve_columns_in_place(&mut self, b: &mut [f64], ncols: usize) {
+        assert!(self.factored, "solve before a successful factorisation");
+        assert_eq!(
+            b.len(),
+            self.pattern.n * ncols,
+            "n × ncols right-hand sides"
+        );
+        let mut mem = MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(ncols, self.par));
+        let llt = LltRef::<usize, f64>::new(&self.symbolic, &self.l_values);
+        let rhs = MatMut::from_column_major_slice_mut(b, self.pattern.n, ncols);
+        llt.solve_in_place_with_conj(Conj::No, rhs, self.par, MemStack::new(&mut mem));
+    }
+}
+
+/// Changes among old equations smaller than this, relative to the geometric
+/// mean of their diagonals, are left out of a [`BorderedSolve`]'s border:
+/// the round-off changes of the standard blocks of newly cut Tet4 (their
+/// side volumes sum to the element's only to round-off).
+pub const BORDER_TOLERANCE: f64 = 1e-13;
+
+/// A bordered solve of a grown system on the factor of an earlier one
+/// (METHODS.md, "Blades": reanalysis for growing cracks): what a linear
+/// scene's steps solve with after cut events that only appended equations,
+/// instead of refactorising.
+///
+/// After cut events without dropped DOFs the new matrix (equations of
+/// `Model::update_cut`: the old ones keep their numbers, new ones are
+/// appended) is A = A₀ + Δ with A₀ = blockdiag(A_old, D), D the diagonal
+/// of A on the new equations, and
+/// Δ = [[E, B], [Bᵀ, C − D]]: E the changes among old equations (the
+/// enriched DOFs of the changed elements), B the coupling of the new
+/// equations to the old ones, C their block. Δ = U W Uᵀ with
+/// U = [P_E, B̂, P_N] (P_E the unit columns of E's equations, B̂ = [B; 0],
+/// P_N those of the new equations) and W = [[E, 0, 0], [0, 0, I], [0, I, C − D]].
+/// With Z = A₀⁻¹U (solves on the old factor, all columns of P_E and B̂ at
+/// once, when the border is built; a border grown from the previous one on
+/// the same factor solves only its new columns) and G = UᵀZ, A x = b is x = y − Z s,
+/// y = A₀⁻¹b, (I + W G) s = W Uᵀy (Woodbury): one solve on the old factor,
+/// two products with the n × k matrix Z and W and an LU solve of order k
+/// per right-hand side, allocation-free. Without E (every change among old
+/// equations within `tol`: the usual case of a growing extended front) the
+/// border is the Schur complement of the new equations instead,
+/// S = C − B A_old⁻¹ Bᵀ: x₂ = S⁻¹(b₂ − B y₁), x₁ = y₁ − A_old⁻¹Bᵀ x₂, one
+/// product with an n_old × k_new matrix (half the Woodbury's columns).
+pub struct BorderedSolve {
+    /// Columns of Z solved for when it was built (the others reused).
+    solved: usize,
+    n_old: usize,
+    /// Old equations with changed entries among themselves (E's).
+    changed: Vec<usize>,
+    /// B̂'s columns: (old equation, value) per new equation.
+    coupling: Vec<Vec<(usize, f64)>>,
+    /// D on the new equations (index eq − n_old).
+    diagonal: Vec<f64>,
+    /// Z = A₀⁻¹U, n × k.
+    z: nalgebra::DMatrix<f64>,
+    w: nalgebra::DMatrix<f64>,
+    /// LU of I + W G (none for an empty border or a Schur complement).
+    lu: Option<nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>>,
+    /// Without changes among old equations (E = 0): the Cholesky factor of
+    /// the Schur complement S = C − B A_old⁻¹ Bᵀ of the new equations.
+    schur: Option<nalgebra::Cholesky<f64, nalgebra::Dyn>>,
+    /// Scratch of order k: Uᵀy, then s.
+    t: nalgebra::DVector<f64>,
+    s: nalgebra::DVector<f64>,
+}
+
+impl BorderedSolve {
+    /// The bordered solve of the matrix `new_values` (lower CSC on `new`)
+    /// on `chol`, factorised with `old_values` on `old`; `None` where the
+    /// new system is smaller, where a new equation has no positive diagonal
+    /// or where I + W G is singular or S not positive definite (refactorise
+    /// then). The caller vouches
+    /// that the old equations kept their numbers (no DOF dropped since
+    /// `chol` was factorised). Changes among old equations with
+    /// |A − A_old| ≤ `tol` × (the geometric mean of their diagonals) are
+    /// left out of E (0: none; [`BORDER_TOLERANCE`]: round-off): the solve
+    /// is then that of a matrix within `tol` of A.
+    pub fn new(
+        chol: &mut Cholesky,
+        old: &Pattern,
+        old_values: &[f64],
+        new: &Pattern,
+        new_values: &[f64],
+        tol: f64,
+    ) -> Option<BorderedSolve> {
+        BorderedSolve::grown(None, chol, old, old_values, new, new_values, tol)
+    }
+
+    /// [`BorderedSolve::new`] reusing the columns of Z that `previous` (a
+    /// border on the same factor, of an earlier matrix of the same growing
+    /// system) solved for: a changed old equation's unit column always, a
+    /// new equation's coupling column where its coupling is unchanged; only
+    /// the others are solved on the factor.
+    pub fn grown(
+        previous: Option<&BorderedSolve>,
+        chol: &mut Cholesky,
+        old: &Pattern,
+        old_values: &[f64],
+        new: &Pattern,
+        new_values: &[f64],
+        tol: f64,
+    ) -> Option<BorderedSolve> {
+        let (n_old, n) = (old.n, new.n);
+        if n < n_old {
+            return None;
+        }
+        let previous = previous.filter(|p| p.n_old == n_old);
+        let k_new = n - n_old;
+        let diagonal_of: Vec<f64> = (0..n)
+            .map(|c| new.position(c, c).map_or(0.0, |p| new_values[p]))
+            .collect();
+        let diagonal = diagonal_of[n_old..].to_vec();
+        if diagonal.iter().any(|&d| d <= 0.0 || !d.is_finite()) {
+            return None;
+        }
+        let (mut e, mut c_minus_d) = (Vec::new(), Vec::new());
+        let mut coupling = vec![Vec::new(); k_new];
+        for c in 0..n {
+            // The old column beside the new one (rows sorted in both).
+            let (mut q, q_end) = if c < n_old {
+                (old.col_ptr[c], old.col_ptr[c + 1])
+            } else {
+                (0, 0)
+            };
+            for p in new.col_ptr[c]..new.col_ptr[c + 1] {
+                let (r, v) = (new.row_idx[p], new_values[p]);
+                // Old entries gone from the new pattern.
+                while q < q_end && old.row_idx[q] < r {
+                    if old_values[q] != 0.0 {
+                        e.push((old.row_idx[q], c, -old_values[q]));
+                    }
+                    q += 1;
+                }
+                match (r < n_old, c < n_old) {
+                    (true, true) => {
+                        let mut d = v;
+                        if q < q_end && old.row_idx[q] == r {
+                            d -= old_values[q];
+                            q += 1;
+                        }
+                        let scale = (diagonal_of[r] * diagonal_of[c]).abs().sqrt();
+                        if d != 0.0 && d.abs() > tol * scale {
+                            e.push((r, c, d));
+                        }
+                    }
+                    (false, true) => coupling[r - n_old].push((c, v)),
+                    (false, false) => {
+                        let d = if r == c { 0.0 } else { v };
+                        if d != 0.0 {
+                            c_minus_d.push((r - n_old, c - n_old, d));
+                        }
+                    }
+                    (true, false) => unreachable!("lower triangle"),
+                }
+            }
+            for q in q..q_end {
+                if old_values[q] != 0.0 {
+                    e.push((old.row_idx[q], c, -old_values[q]));
+                }
+            }
+        }
+        let mut changed: Vec<usize> = e.iter().flat_map(|&(r, c, _)| [r, c]).collect();
+        changed.sort_unstable();
+        changed.dedup();
+        let s = changed.len();
+        let k = s + 2 * k_new;
+        let slot = |eq: usize| changed.binary_search(&eq).expect("changed");
+        let mut w = nalgebra::DMatrix::<f64>::zeros(k, k);
+        for &(r, c, d) in &e {
+            let (i, j) = (slot(r), slot(c));
+            w[(i, j)] += d;
+            if i != j {
+                w[(j, i)] += d;
+            }
+        }
+        for j in 0..k_new {
+            w[(s + j, s + k_new + j)] = 1.0;
+            w[(s + k_new + j, s + j)] = 1.0;
+        }
+        for &(r, c, d) in &c_minus_d {
+            let (i, j) = (s + k_new + r, s + k_new + c);
+            w[(i, j)] += d;
+            if i != j {
+                w[(j, i)] += d;
+            }
+        }
+        // Z's columns of P_E and B̂: those `previous` has, and one blocked
+        // solve on the old factor for the others.
+        let m = s + k_new;
+        let mut z = nalgebra::DMatrix::<f64>::zeros(n, k);
+        let reused = |j: usize| -> Option<usize> {
+            let p = previous?;
+            let ps = p.changed.len();
+            if j < s {
+                p.changed.binary_search(&changed[j]).ok()
+            } else {
+                let i = j - s;
+                (i < p.coupling.len() && p.coupling[i] == coupling[i]).then_some(ps + i)
+            }
+        };
+        let mut solve = Vec::new();
+        for j in 0..m {
+            match (reused(j), previous) {
+                (Some(pj), Some(p)) => z
+                    .view_mut((0, j), (n_old, 1))
+                    .copy_from(&p.z.view((0, pj), (n_old, 1))),
+                _ => solve.push(j),
+            }
+        }
+        if !solve.is_empty() && n_old > 0 {
+            let mut cols = vec![0.0; n_old * solve.len()];
+            for (&j, col) in solve.iter().zip(cols.chunks_exact_mut(n_old)) {
+                if j < s {
+                    col[changed[j]] = 1.0;
+                } else {
+                    for &(r, v) in &coupling[j - s] {
+                        col[r] = v;
+                    }
+                }
+            }
+            chol.solve_columns_in_place(&mut cols, solve.len());
+            for (&j, col) in solve.iter().zip(cols.chunks_exact(n_old)) {
+                z.view_mut((0, j), (n_old, 1)).copy_from_slice(col);
+            }
+        }
+        for j in 0..k_new {
+            z[(n_old + j, s + k_new + j)] = 1.0 / diagonal[j];
+        }
+        let mut solver = BorderedSolve {
+            solved: solve.len(),
+            n_old,
+            changed,
+            coupling,
+            diagonal,
+            z,
+            w,
+            lu: None,
+            schur: None,
+            t: nalgebra::DVector::zeros(k),
+            s: nalgebra::DVector::zeros(k),
+        };
+        if s == 0 && k_new > 0 {
+            // No E: S = C − B Z_B, Z_B = A_old⁻¹ Bᵀ (Z's first k_new columns).
+            let mut schur = nalgebra::DMatrix::<f64>::zeros(k_new, k_new);
+            for (i, &d) in solver.diagonal.iter().enumerate() {
+                schur[(i, i)] = d;
+            }
+            for &(r, c, d) in &c_minus_d {
+                schur[(r, c)] += d;
+                if r != c {
+                    schur[(c, r)] += d;
+                }
+            }
+            for (i, col) in solver.coupling.iter().enumerate() {
+                for j in 0..k_new {
+                    schur[(i, j)] -= col.iter().map(|&(r, v)| v * solver.z[(r, j)]).sum::<f64>();
+                }
+            }
+            // Symmetric up to round-off: take its mean.
+            let schur = (&schur + schur.transpose()) * 0.5;
+            solver.schur = Some(schur.cholesky()?);
+            return Some(solver);
+        }
+        if k > 0 {
+            let mut g = nalgebra::DMatrix::<f64>::zeros(k, k);
+            let mut t = nalgebra::DVector::zeros(k);
+            for j in 0..k {
+                solver.border_of(solver.z.column(j).as_slice(), &mut t);
+                g.set_column(j, &t);
+            }
+            let lu = (nalgebra::DMatrix::<f64>::identity(k, k) + &solver.w * g).lu();
+            if !lu.is_invertible() {
+                return None;
+            }
+            solver.lu = Some(lu);
+        }
+        Some(solver)
+    }
+
+    /// t = Uᵀ x.
+    fn border_of(&self, x: &[f64], t: &mut nalgebra::DVector<f64>) {
+        let (s, k_new) = (self.changed.len(), self.coupling.len());
+        for (i, &eq) in self.changed.iter().enumerate() {
+            t[i] = x[eq];
+        }
+        for (j, col) in self.coupling.iter().enumerate() {
+            t[s + j] = col.iter().map(|&(r, v)| v * x[r]).sum();
+            t[s + k_new + j] = x[self.n_old + j];
+        }
+    }
+
+    /// Size k of the border: the columns of Z a solve multiplies by (changed
+    /// old, coupling and new equations; the new equations' coupling only,
+    /// for a Schur complement).
+    pub fn border(&self) -> usize {
+        if self.schur.is_some() {
+            self.coupling.len()
+        } else {
+            self.w.nrows()
+        }
+    }
+
+    /// Columns of Z on the old factor: changed old equations + new ones.
+    pub fn event_solves(&self) -> usize {
+        self.changed.len() + self.coupling.len()
+    }
+
+    /// Those of [`BorderedSolve::event_solves`] solved when it was built
+    /// (the others taken from the previous border, [`BorderedSolve::grown`]).
+    pub fn solved_columns(&self) -> usize {
+        self.solved
+    }
+
+    /// Solves A x = b in place (b ← x) on the old factor `chol`; allocates nothing.
+    pub fn solve_in_place(&mut self, chol: &mut Cholesky, b: &mut [f64]) {
+        let n_old = self.n_old;
+        chol.solve_in_place(&mut b[..n_old]);
+        if let Some(schur) = &self.schur {
+            // x₂ = S⁻¹ (b₂ − B y₁), x₁ = y₁ − Z_B x₂.
+            let k_new = self.coupling.len();
+            let mut x2 = self.t.rows_mut(0, k_new);
+            for (j, col) in self.coupling.iter().enumerate() {
+                x2[j] = b[n_old + j] - col.iter().map(|&(r, v)| v * b[r]).sum::<f64>();
+            }
+            schur.solve_mut(&mut x2);
+            b[n_old..].copy_from_slice(x2.as_slice());
+            let mut x1 = nalgebra::DVectorViewMut::from_slice(&mut b[..n_old], n_old);
+            x1.gemv(-1.0, &self.z.view((0, 0), (n_old, k_new)), &x2, 1.0);
+            return;
+        }
+        for (x, d) in b[n_old..].iter_mut().zip(&self.diagonal) {
+            *x /= d;
+        }
+        let Some(lu) = &self.lu else {
+            return;
+        };
+        let mut t = std::mem::take(&mut self.t);
+        self.border_of(b, &mut t);
+        self.s.gemv(1.0, &self.w, &t, 0.0);
+        self.t = t;
+        // I + W G was checked invertible when built.
+        lu.solve_mut(&mut self.s);
+        let n = b.len();
+        let mut x = nalgebra::DVectorViewMut::from_slice(b, n);
+        x.gemv(-1.0, &self.z, &self.s, 1.0);
     }
 }
 

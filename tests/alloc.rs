@@ -168,3 +168,52 @@ fn pcg_step_allocates_nothing(warped: bool) {
     );
     assert!(cg > 0);
 }
+
+#[test]
+fn a_bordered_linear_step_after_a_cut_event_allocates_nothing() {
+    use xfem_cut::blade::{map_state, same_setup};
+    use xfem_cut::dynamics::LinearFactor;
+    use xfem_cut::study::fixtures::{beam_mesh, seed_beam, seed_blade};
+    let mesh = beam_mesh([3, 6, 10], false);
+    let cuts = seed_blade(0.0, 1.0);
+    let options = DynamicOptions {
+        dt: 0.005,
+        ..DynamicOptions::default()
+    };
+    let setup_a = cuts.setup_at(&mesh, 0.5).unwrap();
+    let model_a = seed_beam(mesh.clone(), Formulation::Linear, setup_a.clone()).unwrap();
+    let mut nm = Newmark::new(&model_a, Cholesky::new(&model_a.pattern).unwrap(), options).unwrap();
+    nm.initialise_acceleration().unwrap();
+    for _ in 0..3 {
+        nm.step().unwrap();
+    }
+    let mut t = 0.5;
+    let setup_b = loop {
+        t += options.dt;
+        let s = cuts.setup_at(&mesh, t).unwrap();
+        if !same_setup(setup_a.as_ref(), s.as_ref()) {
+            break s;
+        }
+    };
+    let (model_b, stats) = model_a.update_cut(setup_b).unwrap();
+    assert_eq!(stats.dropped_equations, 0);
+    assert!(stats.new_equations > 0);
+    let state = map_state(&model_a, &model_b, &nm.state);
+    let factor: LinearFactor = nm.into_factor();
+    assert!(factor.values.is_some());
+    let mut nb = Newmark::on_factor(&model_b, factor, options).unwrap();
+    nb.state = state;
+    // The first step builds the border on the old factor, no factorisation.
+    let first = nb.step().unwrap();
+    assert_eq!(first.factorisations, 0);
+    let border = nb.border().expect("bordered");
+    let before = allocations();
+    for _ in 0..20 {
+        let r = nb.step().unwrap();
+        assert_eq!((r.iterations, r.factorisations), (1, 0));
+    }
+    let allocated = allocations() - before;
+    println!("border {border}: {allocated} allocations in 20 steps");
+    assert_eq!(allocated, 0, "{allocated} allocations");
+    assert_eq!(nb.symbolic_factorisations(), 0);
+}

@@ -71,11 +71,17 @@ fn a_static_blade_takes_the_completed_sweep_and_equals_the_patch() {
 fn cut_events_keep_both_energies_and_refactorise_only_there() {
     let mesh = bar([3, 3, 6]);
     let g = Vector3::new(-9.81, 0.0, 0.0);
-    for formulation in [Formulation::Linear, Formulation::Corotational] {
+    use xfem_cut::dynamics::{EventSolve, DEFAULT_EVENT_SOLVE};
+    for (formulation, event_solve) in [
+        (Formulation::Linear, EventSolve::Refactorise),
+        (Formulation::Linear, DEFAULT_EVENT_SOLVE),
+        (Formulation::Corotational, DEFAULT_EVENT_SOLVE),
+    ] {
         let cuts = one_blade(blade(0.05, 0.25));
         let opts = DynamicOptions {
             dt: 0.01,
             steps: 30,
+            event_solve,
             ..DynamicOptions::default()
         };
         let build = |cut| model(&mesh, cut, formulation, g, None, true);
@@ -86,7 +92,7 @@ fn cut_events_keep_both_energies_and_refactorise_only_there() {
         })
         .unwrap();
         let sw = &run.sweep;
-        println!("{formulation:?}: {sw}");
+        println!("{formulation:?} {event_solve:?}: {sw}");
         assert_eq!(frames, opts.steps + 1);
         assert!(sw.events.len() >= 3, "{} events", sw.events.len());
         let mut dofs = sw.dofs_first;
@@ -116,10 +122,24 @@ fn cut_events_keep_both_energies_and_refactorise_only_there() {
         assert_eq!(sw.dofs_last, dofs);
         assert_eq!(run.model.n_dofs(), dofs);
         let changed = sw.events.iter().filter(|e| e.pattern_changed).count();
-        assert_eq!(sw.symbolic, 1 + changed);
+        let (bordered, _) = sw.bordered_events();
+        if event_solve == EventSolve::Refactorise || formulation == Formulation::Corotational {
+            assert_eq!(bordered, 0);
+            assert_eq!(sw.symbolic, 1 + changed);
+        } else {
+            // Bordered events keep the old factor's symbolic analysis.
+            assert!(bordered >= 1, "{sw}");
+            // At most one symbolic analysis per refactorised event.
+            assert!(sw.symbolic <= 1 + sw.events.len() - bordered, "{sw}");
+        }
         if formulation == Formulation::Linear {
-            // The mass at the start, then one factorisation per model (the first step after each event).
-            assert_eq!(sw.factorisations, 2 + sw.events.len());
+            // The mass at the start, then one factorisation per model (the
+            // first step after each event) unless it solved bordered.
+            // and after a border refactorised later.
+            assert_eq!(
+                sw.factorisations,
+                2 + sw.events.len() - bordered + sw.refreshed
+            );
         }
         // The steps the sweep index let pass could not have changed the set-up:
         // the events are those of a full check after every step.
@@ -821,7 +841,8 @@ fn incremental_update_equals_a_full_build_at_every_event() {
 
 #[test]
 fn a_bordered_solve_on_the_old_factor_equals_refactorisation() {
-    use xfem_cut::blade::{stiffness_plus_mass, BorderedSolve};
+    use xfem_cut::blade::stiffness_plus_mass;
+    use xfem_cut::solve::BorderedSolve;
     use xfem_cut::solve::Cholesky;
     use xfem_cut::study::fixtures::{beam_mesh, seed_beam, seed_blade};
     let mesh = beam_mesh([3, 6, 11], false);
@@ -942,4 +963,238 @@ fn tip_to_heaviside_changes_are_projected_and_the_energy_jump_shrinks() {
     // An L2 projection of the displacement does not conserve energy: it
     // lowers the largest jump, not every one (see the printed events).
     assert!(worst_raw > 0.0 && worst_projected < worst_raw);
+}
+
+/// The probe displacements of a linear sweep at every step, solved with `event_solve`.
+fn sweep_trajectory(
+    cuts: &CutSet,
+    mesh: &xfem_cut::mesh::TetMesh,
+    opts: DynamicOptions,
+    probes: &[Point3<f64>],
+) -> (Vec<Vector3<f64>>, xfem_cut::blade::Sweep) {
+    use xfem_cut::study::fixtures::seed_beam;
+    let build = |cut| seed_beam(mesh.clone(), Formulation::Linear, cut);
+    let mut trajectory = Vec::new();
+    let run = run_dynamic(cuts, mesh, &build, opts, |_, m, nm| {
+        let loc = Locator::new(&m.mesh);
+        for p in probes {
+            trajectory.push(evaluate_at(m, &loc, &nm.state.d, p).unwrap());
+        }
+    })
+    .unwrap();
+    (trajectory, run.sweep)
+}
+
+#[test]
+fn a_bordered_sweep_follows_the_refactorised_trajectory() {
+    use xfem_cut::dynamics::EventSolve;
+    use xfem_cut::study::fixtures::{beam_mesh, seed_blade};
+    // The seed's blade opening its cut on the beam during [0.1, 0.6] s, then
+    // 0.7 s more: long enough after the last event for its border's steps
+    // to cost a factorisation (refactorised then).
+    let mesh = beam_mesh([3, 6, 10], false);
+    let cuts = seed_blade(0.1, 0.6);
+    let probes = [
+        Point3::new(0.0, 0.03, 0.2),
+        Point3::new(0.03, 0.03, 0.2),
+        Point3::new(0.0, 0.03, 0.1),
+        Point3::new(0.0075, 0.0, 0.1),
+        Point3::new(0.03, 0.06, 0.1),
+    ];
+    for (mass, rayleigh_stiffness) in [(MassKind::Lumped, 0.0), (MassKind::Consistent, 0.002)] {
+        let opts = |event_solve| DynamicOptions {
+            dt: 0.01,
+            steps: 130,
+            mass,
+            rayleigh_stiffness,
+            event_solve,
+            ..DynamicOptions::default()
+        };
+        let (refactorised, sw_r) =
+            sweep_trajectory(&cuts, &mesh, opts(EventSolve::Refactorise), &probes);
+        let (bordered, sw_b) = sweep_trajectory(
+            &cuts,
+            &mesh,
+            opts(xfem_cut::dynamics::DEFAULT_EVENT_SOLVE),
+            &probes,
+        );
+        println!("{mass:?}, β_R = {rayleigh_stiffness}: refactorised: {sw_r}\n  bordered: {sw_b}");
+        assert_eq!(sw_r.events.len(), sw_b.events.len());
+        assert!(sw_r.events.len() >= 3, "{} events", sw_r.events.len());
+        assert_eq!(sw_r.bordered_events().0, 0);
+        let (n_bordered, border) = sw_b.bordered_events();
+        assert_eq!(
+            n_bordered,
+            sw_b.events.len(),
+            "every event bordered (border up to {border})"
+        );
+        // The mass, then one factorisation a model; bordered: the mass and
+        // the first K_eff, and one (on the grown pattern) where the border's
+        // steps had cost a factorisation.
+        assert_eq!(sw_r.factorisations, 2 + sw_r.events.len());
+        assert_eq!((sw_r.refreshed, sw_b.refreshed), (0, 1));
+        assert_eq!(
+            (sw_b.factorisations, sw_b.symbolic),
+            (2 + sw_b.refreshed, 1 + sw_b.refreshed)
+        );
+        let scale = refactorised.iter().map(|u| u.norm()).fold(0.0, f64::max);
+        let diff = refactorised
+            .iter()
+            .zip(&bordered)
+            .map(|(a, b)| (a - b).norm())
+            .fold(0.0, f64::max);
+        println!("  probes over {} steps: largest |u| {scale:.3e}, bordered vs refactorised {:.1e} relative", opts(EventSolve::Refactorise).steps, diff / scale);
+        assert!(scale > 0.0 && diff <= 1e-10 * scale, "{:e}", diff / scale);
+    }
+}
+
+#[test]
+fn a_small_border_limit_refactorises_and_starts_a_new_border() {
+    use xfem_cut::dynamics::EventSolve;
+    use xfem_cut::study::fixtures::{beam_mesh, seed_blade};
+    let mesh = beam_mesh([3, 6, 10], false);
+    let cuts = seed_blade(0.1, 0.6);
+    let probes = [Point3::new(0.0, 0.03, 0.2), Point3::new(0.0, 0.03, 0.1)];
+    let opts = |event_solve| DynamicOptions {
+        dt: 0.01,
+        steps: 70,
+        event_solve,
+        ..DynamicOptions::default()
+    };
+    let (reference, _) = sweep_trajectory(&cuts, &mesh, opts(EventSolve::Refactorise), &probes);
+    let (all, sw_all) = sweep_trajectory(
+        &cuts,
+        &mesh,
+        opts(xfem_cut::dynamics::DEFAULT_EVENT_SOLVE),
+        &probes,
+    );
+    // A limit below the border the events reach together: some events refactorise.
+    let (_, largest) = sw_all.bordered_events();
+    let first = sw_all.events[0].border.unwrap();
+    let max_border = first.max(largest / 2);
+    let (capped, sw) = sweep_trajectory(
+        &cuts,
+        &mesh,
+        opts(EventSolve::Bordered { max_border }),
+        &probes,
+    );
+    println!("limit {max_border}: {sw}");
+    let (n, k) = sw.bordered_events();
+    let refactorised = sw.events.len() - n;
+    assert!(
+        n >= 1 && refactorised >= 1,
+        "{n} bordered, {refactorised} refactorised"
+    );
+    assert!(k <= max_border);
+    assert_eq!(sw.factorisations, 2 + refactorised + sw.refreshed);
+    for (e, f) in sw.events.iter().zip(&sw_all.events) {
+        if let Some(b) = e.border {
+            assert!(
+                b <= f.border.unwrap(),
+                "a border restarted from a later factor"
+            );
+        }
+    }
+    let scale = reference.iter().map(|u| u.norm()).fold(0.0, f64::max);
+    for t in [&all, &capped] {
+        let diff = reference
+            .iter()
+            .zip(t)
+            .map(|(a, b)| (a - b).norm())
+            .fold(0.0, f64::max);
+        assert!(diff <= 1e-10 * scale, "{:e}", diff / scale);
+    }
+}
+
+#[test]
+fn a_border_grown_on_the_same_factor_reuses_its_columns_and_solves_alike() {
+    use xfem_cut::blade::stiffness_plus_mass;
+    use xfem_cut::solve::{BorderedSolve, Cholesky, BORDER_TOLERANCE};
+    use xfem_cut::study::fixtures::{beam_mesh, seed_beam, seed_blade};
+    let mesh = beam_mesh([3, 6, 11], false);
+    let cuts = seed_blade(0.0, 1.0);
+    let c = 1.0 / (0.25 * 0.005f64.powi(2));
+    // One factor (the beam cut to t = 0.2) under every later event's matrix.
+    let base = seed_beam(
+        mesh.clone(),
+        Formulation::Linear,
+        cuts.setup_at(&mesh, 0.2).unwrap(),
+    )
+    .unwrap();
+    let a_base = stiffness_plus_mass(&base, c);
+    let mut chol = Cholesky::new(&base.pattern).unwrap();
+    chol.factorize(&a_base).unwrap();
+    let mut model = seed_beam(
+        mesh.clone(),
+        Formulation::Linear,
+        cuts.setup_at(&mesh, 0.2).unwrap(),
+    )
+    .unwrap();
+    let mut previous: Option<BorderedSolve> = None;
+    let (mut events, mut reused) = (0, 0);
+    for k in 3..=10 {
+        let s = cuts.setup_at(&mesh, 0.1 * k as f64).unwrap();
+        if xfem_cut::blade::same_setup(model.cut.as_ref(), s.as_ref()) {
+            continue;
+        }
+        let (next, stats) = model.update_cut(s).unwrap();
+        assert_eq!(stats.dropped_equations, 0);
+        let a = stiffness_plus_mass(&next, c);
+        let mut direct = Cholesky::new(&next.pattern).unwrap();
+        direct.factorize(&a).unwrap();
+        let b: Vec<f64> = (0..next.n_free)
+            .map(|i| ((i as f64) * 0.37).sin())
+            .collect();
+        let mut y = b.clone();
+        direct.solve_in_place(&mut y);
+        let mut fresh = BorderedSolve::new(
+            &mut chol,
+            &base.pattern,
+            &a_base,
+            &next.pattern,
+            &a,
+            BORDER_TOLERANCE,
+        )
+        .unwrap();
+        let mut grown = BorderedSolve::grown(
+            previous.as_ref(),
+            &mut chol,
+            &base.pattern,
+            &a_base,
+            &next.pattern,
+            &a,
+            BORDER_TOLERANCE,
+        )
+        .unwrap();
+        assert_eq!(grown.border(), fresh.border());
+        assert_eq!(fresh.solved_columns(), fresh.event_solves());
+        let (mut x_fresh, mut x_grown) = (b.clone(), b.clone());
+        fresh.solve_in_place(&mut chol, &mut x_fresh);
+        grown.solve_in_place(&mut chol, &mut x_grown);
+        let (d_fresh, d_grown) = (
+            vector_difference(&y, &x_fresh),
+            vector_difference(&y, &x_grown),
+        );
+        println!(
+            "event {events}: border {} ({} columns, {} solved), vs refactorised: fresh {d_fresh:.1e}, grown {d_grown:.1e}",
+            grown.border(),
+            grown.event_solves(),
+            grown.solved_columns()
+        );
+        assert!(
+            d_fresh <= 1e-11 && d_grown <= 1e-11,
+            "{d_fresh:e} {d_grown:e}"
+        );
+        if previous.is_some() {
+            assert!(grown.solved_columns() < grown.event_solves());
+        }
+        reused += grown.event_solves() - grown.solved_columns();
+        previous = Some(grown);
+        events += 1;
+        model = next;
+    }
+    assert!(
+        events >= 2 && reused > 0,
+        "{events} events, {reused} columns reused"
+    );
 }

@@ -160,6 +160,7 @@ mod tests {
             before: Energies::default(),
             after: Energies::default(),
             pattern_changed: true,
+            border: None,
             changed_elements: 0,
             model_seconds: 0.0,
             symbolic_seconds: 0.0,
