@@ -17,13 +17,17 @@
 //! k = 5, 20).
 //!
 //! `cargo run --release --example step_profile` (all three), or
-//! `-- 6 12 24 [tet10]` for one beam.
+//! `-- 6 12 24 [tet10] [tip]` for one beam (`tip`: the seed's cut shortened
+//! to x = 0.0137, its front inside elements and tip-enriched, as in the
+//! `tip` group of benches/cut.rs).
+use nalgebra::{Point3, Vector3};
 use std::hint::black_box;
 use std::time::Instant;
 use xfem_cut::assembly::{
     element_data_bytes, element_data_pass, equation_shapes, evaluate, tangent_product, Request,
     Workspace,
 };
+use xfem_cut::cut::{setup_cut, CutInput, PlanarPatch, DEFAULT_SNAP};
 use xfem_cut::dynamics::{DynamicOptions, LinearSolver, Newmark};
 use xfem_cut::model::{Formulation, Model};
 use xfem_cut::solve::{Cholesky, Parallelism};
@@ -46,15 +50,29 @@ fn median_ms(mut f: impl FnMut()) -> f64 {
     times[reps / 2]
 }
 
-fn profile(div: [usize; 3], tet10: bool) {
-    let m: Model = seed_beam(beam_mesh(div, tet10), Formulation::Corotational, None).unwrap();
+fn profile(div: [usize; 3], tet10: bool, tip: bool) {
+    let mesh = beam_mesh(div, tet10);
+    let cut = tip.then(|| {
+        let patch = PlanarPatch {
+            origin: Point3::new(0.0, 0.0, 0.1),
+            u: Vector3::new(0.0137, 0.0, 0.0),
+            v: Vector3::new(0.0, 0.06, 0.0),
+        };
+        setup_cut(&mesh, &[CutInput::tip(&patch, DEFAULT_SNAP, None)]).unwrap()
+    });
+    let n_tip = cut.as_ref().map_or(0, |c| c.n_tip());
+    let m: Model = seed_beam(mesh, Formulation::Corotational, cut).unwrap();
     let kind = if tet10 { "Tet10" } else { "Tet4" };
     println!(
-        "\n{} {kind} ({} free DOFs, {} groups): element data {:.1} MB",
+        "\n{} {kind} ({} free DOFs, {} groups, {} dense, {n_tip} tip nodes): element data {:.1} MB, factor {} entries",
         m.mesh.n_elements(),
         m.n_free,
         m.groups.len(),
-        element_data_bytes(&m) as f64 / 1e6
+        m.groups.iter().filter(|g| g.is_dense()).count(),
+        element_data_bytes(&m) as f64 / 1e6,
+        Cholesky::fill_reducing(&m.pattern, Some(&equation_shapes(&m)), Parallelism::SEQUENTIAL)
+            .unwrap()
+            .factor_nnz()
     );
     let opts = DynamicOptions::default();
     let chol = Cholesky::fill_reducing(
@@ -222,11 +240,12 @@ fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     if args.len() >= 3 {
         let div = [0, 1, 2].map(|i| args[i].parse().expect("divisions"));
-        profile(div, args.get(3).is_some_and(|a| a == "tet10"));
+        let flag = |f: &str| args[3..].iter().any(|a| a == f);
+        profile(div, flag("tet10"), flag("tip"));
         return;
     }
     println!("seed beam, corotational, exact tangent, lumped mass, one thread (medians; the machine may be shared)");
-    profile([3, 6, 10], false);
-    profile([6, 12, 24], false);
-    profile([3, 6, 10], true);
+    profile([3, 6, 10], false, false);
+    profile([6, 12, 24], false, false);
+    profile([3, 6, 10], true, false);
 }
