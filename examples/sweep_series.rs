@@ -2,9 +2,9 @@
 //! [0.1, 0.6] s on the beam; prints CSV `time,step_seconds,event,event_seconds`
 //! (event: a cut event followed the step; event_seconds its own time) and
 //! the sweep's summary on stderr; with `--out DIR` also writes
-//! `DIR/data/sweep_series.csv` and `DIR/sweep_series.svg` ([`xfem_cut::study::sweep`]).
-//! the sweep's summary and the medians of a step between events and of an
-//! event with the step after it on stderr. `refactorise` solves the linear
+//! `DIR/data/sweep_series.csv` and `DIR/sweep_series.svg` ([`xfem_cut::study::sweep`]),
+//! and the medians of a step between events and of an event with the step
+//! after it on stderr. `refactorise` solves the linear
 //! steps after events by refactorisation instead of the default bordered
 //! solve on the last factor; `border K` sets the border limit.
 //! `cargo run --release --example sweep_series -- [NX NY NZ] [linear|corotational] [tet10] [refactorise | border K] [--out reports]`
