@@ -315,6 +315,9 @@ impl DenseKernel<'_> {
         t: &mut [Matrix3<f64>],
         mut add: impl FnMut(usize, usize, &Matrix3<f64>),
     ) {
+        // In the group's frame: H_ab = R L_ab Rᵀ with L_ab = K_ab + Q_a T̂_b
+        // + T̂_aᵀ (Q_bᵀ − A T̂_b) + M_ab, T_b = T̂_b Rᵀ (T̂_b = Z⁻¹ [ḡ_b]×), and
+        // M_ab e_l = D_ab R e_l (ω_bl = T̂_b e_l, dS = sym(−[ω_bl]× S + e_l ḡ_bᵀ)).
         let m = grads.len();
         let (r, n) = (self.rotation, 3 * m);
         let tau = DenseKernel::moment(u, h);
@@ -326,37 +329,35 @@ impl DenseKernel<'_> {
             }
             let ha = cross3(&h[3 * a..3 * a + 3]);
             a_mat += cross3(&u[3 * a..3 * a + 3]) * na - ha * cross3(&y[3 * a..3 * a + 3]);
-            p[a] = r * (na - ha);
-            t[a] = rd.z_inv * grads[a].cross_matrix() * r.transpose();
+            p[a] = na - ha;
+            t[a] = rd.z_inv * grads[a].cross_matrix();
         }
         let zt = rd.z_inv.transpose();
         let v2 = zt * tau;
         for b in 0..m {
-            // D_ab's column k for every a needs v₁(b, k) and ω_bk.
+            let u_b = p[b].transpose() - a_mat * t[b];
             let mut v1 = [Vector3::zeros(); 3];
             let mut omega = [Vector3::zeros(); 3];
-            for k in 0..3 {
-                let w = t[b].column(k).into_owned();
-                let mut ek = Vector3::zeros();
-                ek[k] = 1.0;
-                let ds = -w.cross_matrix() * rd.s + r.transpose() * ek * grads[b].transpose();
+            for l in 0..3 {
+                let w = t[b].column(l).into_owned();
+                let mut el = Vector3::zeros();
+                el[l] = 1.0;
+                let ds = -w.cross_matrix() * rd.s + el * grads[b].transpose();
                 let ds = (ds + ds.transpose()) * 0.5;
                 let dz = Matrix3::identity() * ds.trace() - ds;
-                v1[k] = -(zt * dz.transpose() * zt) * tau;
-                omega[k] = w;
+                v1[l] = -(zt * dz.transpose() * zt) * tau;
+                omega[l] = w;
             }
             for a in b..m {
-                let mut block = r * self.block(n, a, b) * r.transpose() + p[a] * t[b]
-                    - t[a].transpose() * a_mat * t[b]
-                    + t[a].transpose() * p[b].transpose();
+                let mut local = self.block(n, a, b) + p[a] * t[b] + t[a].transpose() * u_b;
                 let gv2 = grads[a].cross(&v2);
-                for k in 0..3 {
-                    let col = r * (grads[a].cross(&v1[k]) + omega[k].cross(&gv2));
+                for l in 0..3 {
+                    let col = grads[a].cross(&v1[l]) + omega[l].cross(&gv2);
                     for i in 0..3 {
-                        block[(i, k)] += col[i];
+                        local[(i, l)] += col[i];
                     }
                 }
-                add(a, b, &block);
+                add(a, b, &(r * local * r.transpose()));
             }
         }
     }
