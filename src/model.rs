@@ -320,7 +320,13 @@ impl Model {
         let mut u = Vector3::new(d[3 * node], d[3 * node + 1], d[3 * node + 2]);
         if let Some(c) = &self.cut {
             if let (Some(j), true) = (c.enriched[node], side != 0) {
-                let p = psi(side, c.node_side[node]);
+                // With the ramp the Heaviside enrichment is ramped by 1 − R.
+                let ramp = match self.mid_edge.get(node) {
+                    _ if c.ramp.is_empty() => 0.0,
+                    Some(&Some([a, b])) => 0.5 * (c.ramp_at(a as usize) + c.ramp_at(b as usize)),
+                    _ => c.ramp_at(node),
+                };
+                let p = psi(side, c.node_side[node]) * (1.0 - ramp);
                 let s = self.mesh.n_nodes() + j;
                 u += Vector3::new(d[3 * s], d[3 * s + 1], d[3 * s + 2]) * p;
             }
@@ -638,21 +644,6 @@ impl ElementShapes {
         shape_gradients(self.kind, l, &self.dl, &mut gn);
         vals[..nn].copy_from_slice(&n[..nn]);
         grads[..nn].copy_from_slice(&gn[..nn]);
-        let mut a = nn;
-        for &k in &self.heaviside {
-            let p = if side == 0 {
-                0.0
-            } else {
-                psi(side, self.node_side[k])
-            };
-            vals[a] = n[k] * p;
-            grads[a] = gn[k] * p;
-            a += 1;
-        }
-        let (f, g) = (dot4(l, &self.phi), dot4(l, &self.psi));
-        let (fv, fg) = front::branch_with_gradients(f, g, &self.grad_phi, &self.grad_psi, side);
-        // Tip functions on the vertices' linear partition of unity λ_k, times
-        // the ramp R = Σ_{i∈I} λ_i where it is on (else R ≡ 1).
         let (r, gr) = match &self.ramp {
             Some(in_i) => (0..4)
                 .filter(|&i| in_i[i])
@@ -661,6 +652,28 @@ impl ElementShapes {
                 }),
             None => (1.0, Vector3::zeros()),
         };
+        // With the ramp, the Heaviside enrichment is ramped down by 1 − R
+        // where the tip functions take over the jump.
+        let (h, gh) = if self.ramp.is_some() {
+            (1.0 - r, -gr)
+        } else {
+            (1.0, Vector3::zeros())
+        };
+        let mut a = nn;
+        for &k in &self.heaviside {
+            let p = if side == 0 {
+                0.0
+            } else {
+                psi(side, self.node_side[k])
+            };
+            vals[a] = n[k] * h * p;
+            grads[a] = (gn[k] * h + gh * n[k]) * p;
+            a += 1;
+        }
+        let (f, g) = (dot4(l, &self.phi), dot4(l, &self.psi));
+        let (fv, fg) = front::branch_with_gradients(f, g, &self.grad_phi, &self.grad_psi, side);
+        // Tip functions on the vertices' linear partition of unity λ_k, times
+        // the ramp R = Σ_{i∈I} λ_i where it is on (else R ≡ 1).
         for (j, &(k, _)) in self.tip.iter().enumerate() {
             let (w, gw) = (l[k] * r, self.dl[k] * r + gr * l[k]);
             for b in 0..N_BRANCH {
