@@ -985,3 +985,19 @@ fn ramp_blending_lowers_the_error_at_the_optimal_rate_tet4() {
     assert!(last.l2 < 1.25e-3, "L2 {}", last.l2);
     assert!(last.energy < 0.062, "energy {}", last.energy);
 }
+
+#[test]
+#[ignore = "measurement: cargo test --release --test front blending_measure_tet10 -- --ignored --nocapture"]
+fn blending_measure_tet10() {
+    for (b, blending) in [("none", Blending::None), ("ramp", Blending::Ramp)] {
+        study_blended(
+            &format!("tet10 geometric R=0.2 blending {b}"),
+            &[2, 3, 4],
+            ElementKind::Tet10,
+            0.0,
+            FrontMode::Tip,
+            Some(0.2),
+            blending,
+        );
+    }
+}
