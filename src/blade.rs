@@ -441,6 +441,7 @@ impl CutSet {
                     snap: self.snap,
                     front: self.front,
                     tip_radius: None,
+                    blending: crate::cut::Blending::None,
                 })
                 .collect();
             match setup_cut(mesh, &inputs) {

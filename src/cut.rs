@@ -176,9 +176,42 @@ pub struct CutSetup {
     /// Per node: index of its tip-enriched block (4 branch functions, 12 DOFs).
     pub tip: Vec<Option<usize>>,
     pub n_tip: usize,
+    /// Per node, with [`Blending::Ramp`]: whether it is in I, the nodes the
+    /// ramp R = Σ_{k∈I} λ_k sums over (tip nodes not in I are the blending
+    /// elements' other vertices). Empty for [`Blending::None`].
+    pub ramp: Vec<bool>,
 }
 
 impl CutSetup {
+    /// Whether element `conn` holds tip functions: a tip node without the
+    /// ramp; a node of I with it (R ≡ 0 in elements without one).
+    pub fn holds_tip(&self, conn: &[usize]) -> bool {
+        if self.ramp.is_empty() {
+            conn.iter().any(|&i| self.tip[i].is_some())
+        } else {
+            conn.iter().any(|&i| self.ramp[i])
+        }
+    }
+
+    /// R at vertex `i` (1 without the ramp): the factor of its own tip
+    /// functions there.
+    pub fn ramp_at(&self, i: usize) -> f64 {
+        if self.ramp.is_empty() {
+            1.0
+        } else {
+            f64::from(u8::from(self.ramp[i]))
+        }
+    }
+
+    /// R at the middle of edge (a, b): what multiplies ½ (F − F(x_v)) of a tip
+    /// vertex v of that edge at a Tet10 mid-node (0 where `v` has no tip block).
+    pub fn edge_tip_weight(&self, a: usize, b: usize, v: usize) -> f64 {
+        if self.tip[v].is_none() {
+            0.0
+        } else {
+            0.5 * (self.ramp_at(a) + self.ramp_at(b))
+        }
+    }
     /// Heaviside-enriched nodes (3 DOFs each).
     pub fn n_heaviside(&self) -> usize {
         self.n_enriched
@@ -228,6 +261,29 @@ pub enum FrontMode {
     Extend,
 }
 
+/// What the tip functions do in blending elements (those with some but not
+/// all vertices tip-enriched).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Blending {
+    /// λ_k (F − F(x_k)) for each tip node k, nothing else (standard X-FEM).
+    #[default]
+    None,
+    /// Corrected X-FEM (Fries 2008): λ_k R (F − F(x_k)) with the ramp
+    /// R = Σ_{i∈I} λ_i over the tip nodes I, for k in I and the other
+    /// vertices of blending elements (which get tip blocks too).
+    ///
+    /// Behind the front, the jump in cut blending elements comes R from the
+    /// tip functions and 1 − R from the Heaviside enrichment, ramped by
+    /// 1 − R there and given to all their vertices (those of I too): with a
+    /// plain Heaviside on the blending vertices the jump is counted twice
+    /// (interpolant H1-seminorm error 0.53 → 0.54 from n = 8 to 16; ramped:
+    /// 0.087 → 0.043). Tet4 geometric R = 0.2, exact near-front field:
+    /// L2 / energy errors 2.1× / 2.6× lower at n = 24 than [`Blending::None`]
+    /// at 1.2× the DOFs (tests/front.rs). Tet10 exact-study boundary values
+    /// do not yet include the 1 − R of Heaviside mid-nodes.
+    Ramp,
+}
+
 /// One cut of a scene: its surface and how it is set up.
 #[derive(Clone, Copy)]
 pub struct CutInput<'a> {
@@ -238,6 +294,7 @@ pub struct CutInput<'a> {
     /// `None`: tip-enrich the nodes of front elements (topological);
     /// `Some(R)`: every node within R of the front too (geometric).
     pub tip_radius: Option<f64>,
+    pub blending: Blending,
 }
 
 impl<'a> CutInput<'a> {
@@ -248,6 +305,7 @@ impl<'a> CutInput<'a> {
             snap,
             front: FrontMode::Extend,
             tip_radius: None,
+            blending: Blending::None,
         }
     }
 
@@ -258,6 +316,7 @@ impl<'a> CutInput<'a> {
             snap,
             front: FrontMode::Tip,
             tip_radius,
+            blending: Blending::None,
         }
     }
 }
@@ -344,8 +403,17 @@ fn merge(mesh: &TetMesh, setups: Vec<CutSetup>) -> Result<CutSetup, CutError> {
     let mut n_enriched = 0;
     let mut tip = vec![None; n_nodes];
     let mut n_tip = 0;
+    let any_ramp = setups.iter().any(|s| !s.ramp.is_empty());
+    let mut ramp = vec![false; if any_ramp { n_nodes } else { 0 }];
     for i in 0..n_nodes {
         if let Some(k) = node_owner[i] {
+            if any_ramp {
+                ramp[i] = if setups[k].ramp.is_empty() {
+                    setups[k].tip[i].is_some()
+                } else {
+                    setups[k].ramp[i]
+                };
+            }
             if setups[k].enriched[i].is_some() {
                 enriched[i] = Some(n_enriched);
                 n_enriched += 1;
@@ -376,6 +444,7 @@ fn merge(mesh: &TetMesh, setups: Vec<CutSetup>) -> Result<CutSetup, CutError> {
         front_level,
         tip,
         n_tip,
+        ramp,
     })
 }
 
@@ -548,6 +617,8 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
     // jumps across the cut; a Heaviside mid-node would open the cut ahead).
     let mut tip = vec![None; n_nodes];
     let mut n_tip = 0;
+    let mut ramp = Vec::new();
+    let mut heaviside_too = vec![false; n_nodes];
     if let Some(segments) = &front {
         let mut is_vertex = vec![false; n_nodes];
         for e in 0..mesh.n_elements() {
@@ -573,9 +644,46 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
                 }
             }
         }
+        if input.blending == Blending::Ramp {
+            // I* = I ∪ the vertices of blending elements; those not in I keep
+            // their Heaviside enrichment (their own R is 0 at the node).
+            let mut blend = vec![false; n_nodes];
+            for e in 0..mesh.n_elements() {
+                let v = mesh.vertices(e);
+                if v.iter().any(|&i| is_tip[i]) && !v.iter().all(|&i| is_tip[i]) {
+                    for i in v {
+                        if !is_tip[i] {
+                            blend[i] = true;
+                        }
+                    }
+                }
+            }
+            ramp = is_tip.clone();
+            for i in 0..n_nodes {
+                is_tip[i] |= blend[i];
+            }
+            // The jump behind the front in cut blending elements: R of it from
+            // the tip functions, 1 − R from the Heaviside enrichment ramped
+            // down by 1 − R, on all their vertices (those of I too).
+            for e in 0..mesh.n_elements() {
+                let v = mesh.vertices(e);
+                let blending = v.iter().any(|&i| ramp[i]) && !v.iter().all(|&i| ramp[i]);
+                if blending && matches!(elements[e], ElementCut::Cut { partial: false, .. }) {
+                    for i in v {
+                        if phi[i] != 0.0 {
+                            heaviside_too[i] = true;
+                        }
+                    }
+                }
+            }
+        }
         for i in 0..n_nodes {
             if is_tip[i] {
-                enrich[i] = false;
+                if ramp.is_empty() || (ramp[i] && !heaviside_too[i]) {
+                    enrich[i] = false;
+                } else if heaviside_too[i] {
+                    enrich[i] = true;
+                }
                 tip[i] = Some(n_tip);
                 n_tip += 1;
             }
@@ -621,6 +729,7 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
         front_level,
         tip,
         n_tip,
+        ramp,
     })
 }
 

@@ -320,7 +320,13 @@ impl Model {
         let mut u = Vector3::new(d[3 * node], d[3 * node + 1], d[3 * node + 2]);
         if let Some(c) = &self.cut {
             if let (Some(j), true) = (c.enriched[node], side != 0) {
-                let p = psi(side, c.node_side[node]);
+                // With the ramp the Heaviside enrichment is ramped by 1 − R.
+                let ramp = match self.mid_edge.get(node) {
+                    _ if c.ramp.is_empty() => 0.0,
+                    Some(&Some([a, b])) => 0.5 * (c.ramp_at(a as usize) + c.ramp_at(b as usize)),
+                    _ => c.ramp_at(node),
+                };
+                let p = psi(side, c.node_side[node]) * (1.0 - ramp);
                 let s = self.mesh.n_nodes() + j;
                 u += Vector3::new(d[3 * s], d[3 * s + 1], d[3 * s + 2]) * p;
             }
@@ -333,19 +339,23 @@ impl Model {
                 let here = front::branch_values(r, front::polar_angle(f, g, side));
                 let shift = front::branch_values(r, front::polar_angle(f, g, own));
                 let first = self.mesh.n_nodes() + c.n_enriched + N_BRANCH * t;
+                let ramp = c.ramp_at(node);
                 for b in 0..N_BRANCH {
                     let s = first + b;
-                    u += Vector3::new(d[3 * s], d[3 * s + 1], d[3 * s + 2]) * (here[b] - shift[b]);
+                    u += Vector3::new(d[3 * s], d[3 * s + 1], d[3 * s + 2])
+                        * (ramp * (here[b] - shift[b]));
                 }
             }
             // A Tet10 mid-node: the tip functions of its edge's tip-enriched
-            // vertices (λ = ½ each) do not vanish there.
+            // vertices (λ = ½ each, times the ramp there) do not vanish there.
             if let Some(&Some([a, b])) = self.mid_edge.get(node) {
                 let (f, g) = (c.phi[node], c.front_level[node]);
                 let side = if side != 0 { side } else { c.node_side[node] };
                 let here = front::branch_values(f.hypot(g), front::polar_angle(f, g, side));
-                for v in [a as usize, b as usize] {
+                let (a, b) = (a as usize, b as usize);
+                for v in [a, b] {
                     let Some(t) = c.tip[v] else { continue };
+                    let w = c.edge_tip_weight(a, b, v);
                     let (fv, gv) = (c.phi[v], c.front_level[v]);
                     let own = if fv >= 0.0 { 1 } else { -1 };
                     let shift = front::branch_values(fv.hypot(gv), front::polar_angle(fv, gv, own));
@@ -353,7 +363,7 @@ impl Model {
                     for k in 0..N_BRANCH {
                         let s = first + k;
                         u += Vector3::new(d[3 * s], d[3 * s + 1], d[3 * s + 2])
-                            * (0.5 * (here[k] - shift[k]));
+                            * (0.5 * w * (here[k] - shift[k]));
                     }
                 }
             }
@@ -492,7 +502,7 @@ impl Model {
     /// their place is only a guard that no built model reaches.
     pub fn displacement_at(&self, d: &[f64], e: usize, x: &Point3<f64>, side: i8) -> Vector3<f64> {
         if let Some(c) = &self.cut {
-            if self.mesh.element(e).iter().any(|&i| c.tip[i].is_some()) {
+            if c.holds_tip(self.mesh.element(e)) {
                 return self.field_at(d, e, x, side).0;
             }
         }
@@ -536,6 +546,8 @@ pub struct ElementShapes {
     grad_psi: Vector3<f64>,
     /// F_b(x_k) of each tip node (on its own side).
     shift: Vec<[f64; N_BRANCH]>,
+    /// With [`crate::cut::Blending::Ramp`]: the vertices in I, whose λ sum to R.
+    ramp: Option<[bool; 4]>,
     /// Local element size (tolerance for vertices on the front).
     size: f64,
 }
@@ -562,12 +574,16 @@ impl ElementShapes {
         heaviside: Vec<usize>,
     ) -> ElementShapes {
         let conn = mesh.element(e);
-        let tip: Vec<(usize, usize)> = conn
-            .iter()
-            .enumerate()
-            .filter_map(|(k, &i)| cut.tip[i].map(|t| (k, t)))
-            .collect();
         let v = mesh.vertices(e);
+        let ramp = (!cut.ramp.is_empty()).then(|| v.map(|i| cut.ramp[i]));
+        let tip: Vec<(usize, usize)> = if cut.holds_tip(conn) {
+            conn.iter()
+                .enumerate()
+                .filter_map(|(k, &i)| cut.tip[i].map(|t| (k, t)))
+                .collect()
+        } else {
+            Vec::new()
+        };
         let phi = v.map(|i| cut.phi[i]);
         let psi = v.map(|i| cut.front_level.get(i).copied().unwrap_or(0.0));
         let grad_phi = (0..4).fold(Vector3::zeros(), |s, k| s + dl[k] * phi[k]);
@@ -597,6 +613,7 @@ impl ElementShapes {
             grad_phi,
             grad_psi,
             shift,
+            ramp,
             size: mesh.element_size(e),
         }
     }
@@ -627,6 +644,21 @@ impl ElementShapes {
         shape_gradients(self.kind, l, &self.dl, &mut gn);
         vals[..nn].copy_from_slice(&n[..nn]);
         grads[..nn].copy_from_slice(&gn[..nn]);
+        let (r, gr) = match &self.ramp {
+            Some(in_i) => (0..4)
+                .filter(|&i| in_i[i])
+                .fold((0.0, Vector3::zeros()), |(r, g), i| {
+                    (r + l[i], g + self.dl[i])
+                }),
+            None => (1.0, Vector3::zeros()),
+        };
+        // With the ramp, the Heaviside enrichment is ramped down by 1 − R
+        // where the tip functions take over the jump.
+        let (h, gh) = if self.ramp.is_some() {
+            (1.0 - r, -gr)
+        } else {
+            (1.0, Vector3::zeros())
+        };
         let mut a = nn;
         for &k in &self.heaviside {
             let p = if side == 0 {
@@ -634,18 +666,20 @@ impl ElementShapes {
             } else {
                 psi(side, self.node_side[k])
             };
-            vals[a] = n[k] * p;
-            grads[a] = gn[k] * p;
+            vals[a] = n[k] * h * p;
+            grads[a] = (gn[k] * h + gh * n[k]) * p;
             a += 1;
         }
         let (f, g) = (dot4(l, &self.phi), dot4(l, &self.psi));
         let (fv, fg) = front::branch_with_gradients(f, g, &self.grad_phi, &self.grad_psi, side);
-        // Tip functions on the vertices' linear partition of unity λ_k.
+        // Tip functions on the vertices' linear partition of unity λ_k, times
+        // the ramp R = Σ_{i∈I} λ_i where it is on (else R ≡ 1).
         for (j, &(k, _)) in self.tip.iter().enumerate() {
+            let (w, gw) = (l[k] * r, self.dl[k] * r + gr * l[k]);
             for b in 0..N_BRANCH {
                 let df = fv[b] - self.shift[j][b];
-                vals[a] = l[k] * df;
-                grads[a] = self.dl[k] * df + fg[b] * l[k];
+                vals[a] = w * df;
+                grads[a] = gw * df + fg[b] * w;
                 a += 1;
             }
         }
@@ -1546,8 +1580,9 @@ fn mid_edges(mesh: &TetMesh, cut: Option<&CutSetup>) -> Vec<Option<[u32; 2]>> {
             for e in 0..mesh.n_elements() {
                 let conn = mesh.element(e);
                 for (k, &(a, b)) in TET10_EDGES.iter().enumerate() {
-                    if c.tip[conn[a]].is_some() || c.tip[conn[b]].is_some() {
-                        mid_edge[conn[4 + k]] = Some([conn[a] as u32, conn[b] as u32]);
+                    let (a, b) = (conn[a], conn[b]);
+                    if c.edge_tip_weight(a, b, a) > 0.0 || c.edge_tip_weight(a, b, b) > 0.0 {
+                        mid_edge[conn[4 + k]] = Some([a as u32, b as u32]);
                     }
                 }
             }
@@ -1682,7 +1717,8 @@ pub fn same_element_model(
     let tip = |c: Option<&CutSetup>, i: usize| {
         c.is_some_and(|c| c.tip.get(i).copied().flatten().is_some())
     };
-    let has_tip = |c: Option<&CutSetup>| conn.iter().any(|&i| tip(c, i));
+    let has_tip = |c: Option<&CutSetup>| c.is_some_and(|c| c.holds_tip(conn));
+    let ramp = |c: Option<&CutSetup>, i: usize| c.map_or(1.0, |c| c.ramp_at(i));
     let (ta, tb) = (has_tip(a), has_tip(b));
     if ta != tb {
         return false;
@@ -1697,6 +1733,7 @@ pub fn same_element_model(
         if enriched(a, i) != enriched(b, i)
             || (enriched(a, i) && side(a, i) != side(b, i))
             || tip(a, i) != tip(b, i)
+            || ramp(a, i) != ramp(b, i)
         {
             return false;
         }

@@ -207,6 +207,7 @@ impl crate::scene::CutSpec {
                 FrontMode::Extend => crate::cut::FrontMode::Extend,
             },
             tip_radius: self.tip_radius,
+            blending: crate::cut::Blending::None,
         }
     }
 }

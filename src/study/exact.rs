@@ -399,9 +399,10 @@ impl WilliamsFront {
         let mut u = self.exact(&x, side).0;
         if let Some((a, b)) = edges[i] {
             for v in [a, b] {
-                if cut.tip[v].is_some() {
+                let w = cut.edge_tip_weight(a, b, v);
+                if w > 0.0 {
                     u -= (self.exact(&x, side).0 - self.exact(&mesh.nodes[v], cut.node_side[v]).0)
-                        * 0.5;
+                        * (0.5 * w);
                 }
             }
         }
@@ -433,11 +434,18 @@ impl WilliamsFront {
                 // mid-node's tip-enriched edge vertices already jump there,
                 // ½ (F(+) − F(−)) b each. u_other = −u_own for this field, so
                 // a = 2 H u_own (1 − k/2) with k such vertices (0 at a vertex).
-                let k = edges[i].map_or(0, |(a, b)| {
-                    usize::from(cut.tip[a].is_some()) + usize::from(cut.tip[b].is_some())
+                let k = edges[i].map_or(0.0, |(a, b)| {
+                    cut.edge_tip_weight(a, b, a) + cut.edge_tip_weight(a, b, b)
                 });
+                // With the ramp the Heaviside function is ramped by 1 − R there.
+                let ramp = match edges[i] {
+                    _ if cut.ramp.is_empty() => 0.0,
+                    Some((a, b)) => 0.5 * (cut.ramp_at(a) + cut.ramp_at(b)),
+                    None => cut.ramp_at(i),
+                };
+                let scale = if ramp < 1.0 { 1.0 / (1.0 - ramp) } else { 1.0 };
                 let own = self.exact(p, side).0;
-                let a = own * (2.0 * f64::from(side) * (1.0 - 0.5 * k as f64));
+                let a = own * (2.0 * f64::from(side) * (1.0 - 0.5 * k) * scale);
                 fixed.push((n_nodes + j, a.map(Some).into()));
             }
             if let Some(t) = cut.tip[i] {
@@ -805,6 +813,7 @@ pub fn solve(variant: &Variant, level: usize) -> Result<Row, StudyError> {
             snap: crate::cut::DEFAULT_SNAP,
             front: variant.front,
             tip_radius: variant.tip_radius,
+            blending: crate::cut::Blending::None,
         }],
     )?;
     if variant.precut {
