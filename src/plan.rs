@@ -46,6 +46,14 @@ pub fn frames_kept(analysis: &Analysis) -> usize {
 }
 
 impl Plan {
+    /// The run solves on this gmsh mesh instead of the case's own (`--mesh`).
+    pub fn mesh_from(&mut self, path: &std::path::Path) {
+        if let Some(stage) = self.stages.iter_mut().find(|s| s.name == "mesh") {
+            let kind = stage.why.split(' ').next().unwrap_or_default().to_string();
+            stage.why = format!("{kind} gmsh file {}, given by --mesh", path.display());
+        }
+    }
+
     pub fn new(scene: &Scene, model: &Model, elements: usize, times: [f64; 3]) -> Plan {
         let corot = scene.formulation == Formulation::Corotational;
         let cut = !scene.cuts.is_empty();

@@ -109,9 +109,17 @@ pub fn solve_scene(
         },
     ) = (scene.has_blade(), &scene.analysis)
     {
-        return solve_progressive(scene, mesh, t_mesh, *options, *output_every, keep_frames);
+        let mut result =
+            solve_progressive(scene, mesh, t_mesh, *options, *output_every, keep_frames)?;
+        if let Some(p) = mesh_override {
+            result.plan.mesh_from(p);
+        }
+        return Ok(result);
     }
-    let (model, plan) = scene.build(mesh)?;
+    let (model, mut plan) = scene.build(mesh)?;
+    if let Some(p) = mesh_override {
+        plan.mesh_from(p);
+    }
     let t1 = Instant::now();
     // The fill-reducing rule of `Cholesky::fill_reducing` (METIS nested
     // dissection on the node graph from 10k equations, else the smaller of it and AMD).

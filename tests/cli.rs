@@ -364,3 +364,42 @@ fn a_dynamic_run_writes_a_series_that_reads_back() {
     assert_eq!(points[1], nalgebra::Point3::new(0.03, 0.06, 0.2));
     assert!(disp[1].x > 0.0, "gravity in +x moves the tip in +x");
 }
+
+#[test]
+fn the_plan_names_the_mesh_given_by_the_mesh_option() {
+    let dir = tempfile::tempdir().unwrap();
+    let case = dir.path().join("case.toml");
+    std::fs::write(
+        &case,
+        GOOD.replace(
+            "[[0.0, 0.0, 0.0], [0.03, 0.06, 0.2]]",
+            "[[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]]",
+        )
+        .replace("[[0.0, 0.03, 0.2], [0.03, 0.06, 0.2]]", "[[0.5, 0.5, 1.0]]"),
+    )
+    .unwrap();
+    let mesh =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/gmsh_cube_tet4_binary.msh");
+    let out = Command::new(bin())
+        .arg("run")
+        .arg(&case)
+        .arg("--mesh")
+        .arg(&mesh)
+        .arg("--out")
+        .arg(dir.path().join("out"))
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let line = stdout.lines().find(|l| l.contains("] mesh")).unwrap();
+    assert!(
+        line.contains("tet4 gmsh file")
+            && line.contains("gmsh_cube_tet4_binary.msh")
+            && !line.contains("structured"),
+        "{line}"
+    );
+}

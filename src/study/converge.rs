@@ -4,7 +4,11 @@
 //!
 //! Variants: FEM on the gmsh pre-cut meshes (the "perfectly remeshed cut"),
 //! X-FEM on the structured box levels of the case and on the unstructured
-//! uncut gmsh meshes, each with Tet4 and Tet10.
+//! uncut gmsh meshes, each with Tet4 and Tet10. On the unstructured meshes
+//! (where the front lies inside elements) the linear study runs the three
+//! front treatments side by side: topological tip enrichment, the seed's
+//! extended front, and geometric tip enrichment within
+//! [`GEOMETRIC_TIP_RADIUS`].
 
 use crate::cut::{CutSurface, PlanarPatch};
 use crate::io::csv::{read_rows, sci, write_rows};
@@ -13,7 +17,7 @@ use crate::locate::Locator;
 use crate::mesh::ElementKind;
 use crate::model::Formulation;
 use crate::run::{evaluate_at, solve_scene};
-use crate::scene::{BodyGeometry, Scene};
+use crate::scene::{BodyGeometry, FrontMode, Scene};
 use crate::study::reference::{out_dir, read_reference, Reference};
 use crate::study::verify::{l2_error, Field};
 use crate::study::StudyError;
@@ -251,25 +255,59 @@ pub fn converge_case(
         })
         .collect();
 
-    // (variant, element, level, mesh override, keep the cut)
-    let mut runs: Vec<(String, ElementKind, usize, Option<PathBuf>, bool)> = Vec::new();
+    // (variant, element, level, mesh override, keep the cut, front treatment)
+    let mut runs: Vec<Run> = Vec::new();
     for element in [ElementKind::Tet4, ElementKind::Tet10] {
         for (k, m) in family_meshes(&family).into_iter().enumerate() {
-            runs.push(("FEM pre-cut".into(), element, k, Some(m), false));
+            runs.push(Run::new("FEM pre-cut", element, k, Some(m), None));
         }
         if !base.cuts.is_empty() {
             if let BodyGeometry::Box { levels, .. } = &base.geometry {
                 for k in 0..levels.len() {
-                    runs.push(("X-FEM structured".into(), element, k, None, true));
+                    runs.push(Run::new(
+                        "X-FEM structured",
+                        element,
+                        k,
+                        None,
+                        Some(Front::Case),
+                    ));
                 }
             }
             for (k, m) in family_meshes("beam_uncut").into_iter().enumerate() {
-                runs.push(("X-FEM unstructured".into(), element, k, Some(m), true));
+                // The linear study sets the three front treatments side by side
+                // (the corotational one keeps the case's own).
+                let fronts: &[Front] = if corotational {
+                    &[Front::Case]
+                } else {
+                    &[Front::Tip, Front::Extend, Front::Geometric]
+                };
+                for &front in fronts {
+                    runs.push(Run::new(
+                        front.variant(),
+                        element,
+                        k,
+                        Some(m.clone()),
+                        Some(front),
+                    ));
+                }
             }
         }
     }
-    for (variant, element, level, mesh, keep_cut) in runs {
+    // Whether the case's cut has a front inside the body (set by the first
+    // tip-enriched run; without one the front variants are the same run).
+    let mut has_front: Option<bool> = None;
+    for Run {
+        variant,
+        element,
+        level,
+        mesh,
+        front,
+    } in runs
+    {
         if level >= below {
+            continue;
+        }
+        if matches!(front, Some(Front::Extend | Front::Geometric)) && has_front == Some(false) {
             continue;
         }
         let mut scene = base.clone();
@@ -277,8 +315,9 @@ pub fn converge_case(
         if corotational {
             scene.formulation = Formulation::Corotational;
         }
-        if !keep_cut {
-            scene.cuts.clear();
+        match front {
+            None => scene.cuts.clear(),
+            Some(f) => f.apply(&mut scene),
         }
         // Skip runs beyond the DOF budget (estimated from the mesh before solving).
         let t0 = Instant::now();
@@ -300,6 +339,16 @@ pub fn converge_case(
             continue;
         }
         let result = solve_scene(&scene, level, mesh.as_deref(), false)?;
+        let n_tip = result.model.cut.as_ref().map_or(0, |c| c.n_tip());
+        if front == Some(Front::Tip) && has_front.is_none() {
+            has_front = Some(n_tip > 0);
+        }
+        // Without a front the tip run is plain Heaviside X-FEM.
+        let variant = if front == Some(Front::Tip) && has_front == Some(false) {
+            "X-FEM unstructured".to_string()
+        } else {
+            variant
+        };
         let wall = t0.elapsed().as_secs_f64();
         let t = result.timings;
         // Mesh reading is not precompute (FEniCSx times exclude it too).
@@ -356,6 +405,77 @@ pub fn converge_case(
         rows.push(row);
     }
     Ok(rows)
+}
+
+/// One run of the study before it is solved.
+struct Run {
+    variant: String,
+    element: ElementKind,
+    level: usize,
+    /// A gmsh mesh instead of the case's structured level.
+    mesh: Option<PathBuf>,
+    /// `None`: FEM (the cut removed, the mesh is pre-cut).
+    front: Option<Front>,
+}
+
+impl Run {
+    fn new(
+        variant: &str,
+        element: ElementKind,
+        level: usize,
+        mesh: Option<PathBuf>,
+        front: Option<Front>,
+    ) -> Run {
+        Run {
+            variant: variant.to_string(),
+            element,
+            level,
+            mesh,
+            front,
+        }
+    }
+}
+
+/// The tip radius of the geometric variant (m): a third of the seed beam's
+/// ligament (15 mm), fixed as h → 0 as geometric enrichment needs.
+pub const GEOMETRIC_TIP_RADIUS: f64 = 0.005;
+
+/// The front treatment of an X-FEM run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Front {
+    /// As the case file says.
+    Case,
+    /// Topological tip enrichment (the nodes of front elements).
+    Tip,
+    /// The seed's: the cut extended to the faces of the front elements.
+    Extend,
+    /// Tip enrichment of every node within [`GEOMETRIC_TIP_RADIUS`] of the front.
+    Geometric,
+}
+
+impl Front {
+    fn variant(self) -> &'static str {
+        match self {
+            Front::Case => "X-FEM unstructured",
+            Front::Tip => "X-FEM unstructured, tip",
+            Front::Extend => "X-FEM unstructured, extend",
+            Front::Geometric => "X-FEM unstructured, geometric tip R=5 mm",
+        }
+    }
+
+    /// Sets every cut of the scene to this treatment.
+    fn apply(self, scene: &mut Scene) {
+        let (mode, radius) = match self {
+            Front::Case => return,
+            Front::Tip => (FrontMode::Tip, None),
+            Front::Extend => (FrontMode::Extend, None),
+            Front::Geometric => (FrontMode::Tip, Some(GEOMETRIC_TIP_RADIUS)),
+        };
+        for cut in &mut scene.cuts {
+            cut.front = Some(mode);
+            cut.tip_radius = radius;
+        }
+    }
 }
 
 /// Offset from the cut plane at which each side is read (m): far beyond the
