@@ -686,34 +686,44 @@ fn exact_section(reports: &Path) -> Result<String, StudyError> {
     Ok(md)
 }
 
-/// Criterion medians kept in `reports/data/benches.csv` (id, median ns): written when
-/// `target/criterion` has them, read back when it has none (a checkout that did not run
-/// `make bench-report`), so regenerating the report keeps the last measured benchmarks.
+/// Criterion medians kept in `reports/data/benches.csv` (id, median ns): those
+/// `target/criterion` has replace the kept ones of the same id and are added to
+/// the rest, so a partial `cargo bench` (one group) or a checkout that did not
+/// run `make bench-report` keeps the last measured figures of the others.
 fn benches_kept(
     reports: &Path,
     fresh: Vec<(String, f64)>,
 ) -> Result<Vec<(String, f64)>, StudyError> {
     let path = reports.join("data/benches.csv");
-    if !fresh.is_empty() {
-        let mut text = String::from("id,median_ns\n");
-        for (id, ns) in &fresh {
-            let _ = writeln!(text, "{id},{ns:e}");
-        }
-        std::fs::write(&path, text).map_err(|e| IoError::os(&path, "write", e))?;
-        return Ok(fresh);
-    }
-    let Ok(text) = std::fs::read_to_string(&path) else {
-        return Ok(Vec::new());
+    let mut kept: Vec<(String, f64)> = match std::fs::read_to_string(&path) {
+        Err(_) => Vec::new(),
+        Ok(text) => text
+            .lines()
+            .skip(1)
+            .filter(|l| !l.trim().is_empty())
+            .map(|l| {
+                l.rsplit_once(',')
+                    .and_then(|(id, ns)| Some((id.to_string(), ns.trim().parse().ok()?)))
+                    .ok_or_else(|| IoError::invalid(&path, format!("bad row `{l}`")))
+            })
+            .collect::<Result<_, _>>()?,
     };
-    text.lines()
-        .skip(1)
-        .filter(|l| !l.trim().is_empty())
-        .map(|l| {
-            l.rsplit_once(',')
-                .and_then(|(id, ns)| Some((id.to_string(), ns.trim().parse().ok()?)))
-                .ok_or_else(|| IoError::invalid(&path, format!("bad row `{l}`")).into())
-        })
-        .collect()
+    if fresh.is_empty() {
+        return Ok(kept);
+    }
+    for (id, ns) in fresh {
+        match kept.iter_mut().find(|(k, _)| *k == id) {
+            Some(entry) => entry.1 = ns,
+            None => kept.push((id, ns)),
+        }
+    }
+    kept.sort_by(|a, b| a.0.cmp(&b.0));
+    let mut text = String::from("id,median_ns\n");
+    for (id, ns) in &kept {
+        let _ = writeln!(text, "{id},{ns:e}");
+    }
+    crate::io::write_atomic(&path, |w| std::io::Write::write_all(w, text.as_bytes()))?;
+    Ok(kept)
 }
 
 /// The median (ns) of the benchmark of `group` whose id holds every part
@@ -866,7 +876,7 @@ mod tests {
     }
 
     #[test]
-    fn benchmarks_are_kept_when_criterion_has_none() {
+    fn benchmarks_are_kept_when_criterion_has_none_or_some() {
         let dir = tempfile::tempdir().unwrap();
         std::fs::create_dir(dir.path().join("data")).unwrap();
         assert!(benches_kept(dir.path(), Vec::new()).unwrap().is_empty());
@@ -876,6 +886,25 @@ mod tests {
         )];
         assert_eq!(benches_kept(dir.path(), fresh.clone()).unwrap(), fresh);
         assert_eq!(benches_kept(dir.path(), Vec::new()).unwrap(), fresh);
+        // A partial run (one other group) replaces its own ids and keeps the rest.
+        let partial = vec![
+            ("a-tip/step".to_string(), 2.0e5),
+            (fresh[0].0.clone(), 1.25e5),
+        ];
+        let merged = benches_kept(dir.path(), partial).unwrap();
+        assert_eq!(
+            merged,
+            vec![
+                ("a-tip/step".to_string(), 2.0e5),
+                (fresh[0].0.clone(), 1.25e5)
+            ]
+        );
+        assert_eq!(
+            benches_kept(dir.path(), vec![("z".to_string(), 1.0)])
+                .unwrap()
+                .len(),
+            3
+        );
         std::fs::write(
             dir.path().join("data/benches.csv"),
             "id,median_ns\nx,notanumber\n",
