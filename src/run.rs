@@ -309,6 +309,20 @@ pub fn evaluate_at(
     d: &[f64],
     x: &Point3<f64>,
 ) -> Option<Vector3<f64>> {
+    evaluate_on_side(model, locator, d, x, None)
+}
+
+/// As [`evaluate_at`], on the given side of the cut (+1 or −1) instead of
+/// the sign of the interpolated level set: a point on the cut plane reads
+/// either face of the cut exactly, even where nodes snapped onto the plane
+/// tilt the interpolated level set by up to the snapping distance.
+pub fn evaluate_on_side(
+    model: &Model,
+    locator: &Locator,
+    d: &[f64],
+    x: &Point3<f64>,
+    side: Option<i8>,
+) -> Option<Vector3<f64>> {
     let (e, bary) = locator.locate(&model.mesh, x)?;
     let Some(cut) = &model.cut else {
         return Some(model.displacement_at(d, e, x, 0));
@@ -322,7 +336,7 @@ pub fn evaluate_at(
             .map(|(&i, l)| cut.phi[i] * l)
             .sum()
     };
-    let side: i8 = if level(e, &bary) >= 0.0 { 1 } else { -1 };
+    let side: i8 = side.unwrap_or(if level(e, &bary) >= 0.0 { 1 } else { -1 });
     // Whether element e's field is the one of `side` (a cut element holds both).
     let serves = |e: usize| match &cut.elements[e] {
         crate::cut::ElementCut::Cut { .. } => true,

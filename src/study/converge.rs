@@ -16,7 +16,7 @@ use crate::io::IoError;
 use crate::locate::Locator;
 use crate::mesh::ElementKind;
 use crate::model::Formulation;
-use crate::run::{evaluate_at, solve_scene};
+use crate::run::{evaluate_on_side, solve_scene};
 use crate::scene::{BodyGeometry, FrontMode, Scene};
 use crate::study::reference::{out_dir, read_reference, Reference};
 use crate::study::verify::{l2_error, Field};
@@ -243,15 +243,15 @@ pub fn converge_case(
         }
     }
     // Probes on the cut are read on its + side (as `run` does).
-    let probes: Vec<(Point3<f64>, Vector3<f64>)> = base
+    // (point, on the cut, reference value)
+    let probes: Vec<(Point3<f64>, bool, Vector3<f64>)> = base
         .probes
         .iter()
         .filter_map(|x| {
             let on_cut = patch
                 .as_ref()
                 .is_some_and(|p| p.level_set(x).abs() < 1e-12 && p.contains(x, 1e-9));
-            let x = if on_cut { x + offset } else { *x };
-            ref_at(&x).map(|u| (x, u))
+            ref_at(&if on_cut { x + offset } else { *x }).map(|u| (*x, on_cut, u))
         })
         .collect();
 
@@ -338,6 +338,7 @@ pub fn converge_case(
             ));
             continue;
         }
+        let keep_cut = front.is_some();
         let result = solve_scene(&scene, level, mesh.as_deref(), false)?;
         let n_tip = result.model.cut.as_ref().map_or(0, |c| c.n_tip());
         if front == Some(Front::Tip) && has_front.is_none() {
@@ -357,18 +358,31 @@ pub fn converge_case(
         let err = l2_error(&field, &result.model, &result.d, &locator).map_err(|e| {
             StudyError::from(e).during(format!("{}: {variant} L{level}", base.name))
         })?;
-        let ours = |x: &Point3<f64>| evaluate_at(&result.model, &locator, &result.d, x);
+        let ours = |x: &Point3<f64>, side: Option<i8>| {
+            evaluate_on_side(&result.model, &locator, &result.d, x, side)
+        };
+        // Ours on each face of the cut exactly (FEM: its faces are the pre-cut
+        // mesh's, read off the plane as the reference is).
         let opening = relative_error(crack.iter().map(|(x, jump)| {
-            let mine = ours(&(x + offset))
-                .zip(ours(&(x - offset)))
-                .map(|(a, b)| a - b);
-            (mine, *jump)
+            let mine = if keep_cut {
+                ours(x, Some(1)).zip(ours(x, Some(-1)))
+            } else {
+                ours(&(x + offset), None).zip(ours(&(x - offset), None))
+            };
+            (mine.map(|(a, b)| a - b), *jump)
         }));
         let probe_error = {
-            let scale = probes.iter().map(|(_, u)| u.norm()).fold(0.0, f64::max);
+            let scale = probes.iter().map(|(_, _, u)| u.norm()).fold(0.0, f64::max);
             probes
                 .iter()
-                .map(|(x, u)| ours(x).map_or(f64::INFINITY, |v| (v - u).norm()))
+                .map(|(x, on_cut, u)| {
+                    let v = match (on_cut, keep_cut) {
+                        (true, true) => ours(x, Some(1)),
+                        (true, false) => ours(&(x + offset), None),
+                        (false, _) => ours(x, None),
+                    };
+                    v.map_or(f64::INFINITY, |v| (v - u).norm())
+                })
                 .fold(f64::NAN, f64::max)
                 / scale
         };
