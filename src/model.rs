@@ -526,6 +526,10 @@ impl Model {
     }
 }
 
+/// Distance to the front, relative to the element size, within which a point
+/// is on the front (the round-off of the interpolated level sets is ~1e-15 h).
+pub const FRONT_SNAP: f64 = 1e-12;
+
 /// The shape functions of an element holding tip-enriched nodes, evaluated
 /// point by point: its nodes' N_k, the shifted Heaviside ψ N_k of its
 /// Heaviside-enriched nodes (eq. 58–59), then per tip-enriched node four
@@ -592,13 +596,17 @@ impl ElementShapes {
         for (k, &i) in conn.iter().enumerate() {
             node_side[k] = cut.node_side[i];
         }
+        let size = mesh.element_size(e);
         let shift = tip
             .iter()
             .map(|&(k, _)| {
                 let l = node_bary(k);
                 let (f, g) = (dot4(&l, &phi), dot4(&l, &psi));
                 let side = if f >= 0.0 { 1 } else { -1 };
-                front::branch_values(f.hypot(g), front::polar_angle(f, g, side))
+                // As in `eval`: a node within round-off of the front is on it.
+                let r = f.hypot(g);
+                let r = if r <= FRONT_SNAP * size { 0.0 } else { r };
+                front::branch_values(r, front::polar_angle(f, g, side))
             })
             .collect();
         ElementShapes {
@@ -614,7 +622,7 @@ impl ElementShapes {
             grad_psi,
             shift,
             ramp,
-            size: mesh.element_size(e),
+            size,
         }
     }
 
@@ -670,7 +678,13 @@ impl ElementShapes {
             grads[a] = (gn[k] * h + gh * n[k]) * p;
             a += 1;
         }
-        let (f, g) = (dot4(l, &self.phi), dot4(l, &self.psi));
+        let (mut f, mut g) = (dot4(l, &self.phi), dot4(l, &self.psi));
+        // A point within round-off of the front is on it (r = 0: the tip
+        // functions vanish, so the cut's opening is exactly 0 there rather
+        // than √r of the interpolation's round-off, ~1e-8).
+        if f.hypot(g) <= FRONT_SNAP * self.size {
+            (f, g) = (0.0, 0.0);
+        }
         let (fv, fg) = front::branch_with_gradients(f, g, &self.grad_phi, &self.grad_psi, side);
         // Tip functions on the vertices' linear partition of unity λ_k, times
         // the ramp R = Σ_{i∈I} λ_i where it is on (else R ≡ 1).
