@@ -91,6 +91,98 @@ fn expected_text(case: &str, variant: &str, element: &str) -> String {
     expected_order(case, variant, element).map_or("– (edge load)".into(), |p| format!("{p:.0}"))
 }
 
+/// How far beyond FEM's finest level (in DOFs) [`fem_error_at`] extrapolates.
+pub const FEM_EXTRAPOLATION: f64 = 1.25;
+
+/// FEM's L2 error at `dofs` free DOFs (`fem` sorted by DOFs): log–log
+/// interpolation between the FEM levels around it; below its coarsest level,
+/// that level's error (FEM with more DOFs); up to [`FEM_EXTRAPOLATION`]×
+/// its finest level's DOFs, the last two levels' slope extrapolated (FEM's
+/// error falls with DOFs, so this favours FEM); `None` beyond.
+pub fn fem_error_at(fem: &[&Row], dofs: usize) -> Option<f64> {
+    let first = fem.first()?;
+    if dofs <= first.dofs {
+        return Some(first.l2);
+    }
+    let log_line = |a: &Row, b: &Row| {
+        let t = (dofs as f64 / a.dofs as f64).ln() / (b.dofs as f64 / a.dofs as f64).ln();
+        (a.l2.ln() + t * (b.l2.ln() - a.l2.ln())).exp()
+    };
+    if let Some(v) = fem
+        .windows(2)
+        .find_map(|w| (w[0].dofs <= dofs && dofs <= w[1].dofs).then(|| log_line(w[0], w[1])))
+    {
+        return Some(v);
+    }
+    match fem {
+        [.., a, b] if (dofs as f64) <= FEM_EXTRAPOLATION * b.dofs as f64 => {
+            Some(log_line(a, b).min(b.l2))
+        }
+        _ => None,
+    }
+}
+
+/// How an X-FEM run compares with remeshed FEM at its DOFs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Verdict {
+    /// Lower than FEM by more than the reference's own error.
+    Lower,
+    /// Higher than FEM by more than the reference's own error.
+    Higher,
+    /// Within the reference's own error of FEM's: the reference cannot tell.
+    Unresolved,
+    /// More DOFs than FEM's finest level.
+    NoFem,
+}
+
+/// X-FEM's error `xfem` against FEM's `fem` at the same DOFs, `own` the
+/// reference's own L2 error (0 when unknown).
+pub fn verdict(xfem: f64, fem: Option<f64>, own: f64) -> Verdict {
+    match fem {
+        None => Verdict::NoFem,
+        Some(f) if xfem + own < f => Verdict::Lower,
+        Some(f) if xfem > f + own => Verdict::Higher,
+        Some(_) => Verdict::Unresolved,
+    }
+}
+
+/// Per X-FEM variant on the unstructured meshes and level: its L2 error
+/// beside remeshed FEM's (same element) at the same DOFs, and the verdict.
+fn against_remeshing(s: &Series<'_>, q: Option<&ReferenceQuality>) -> String {
+    let own = q.map_or(0.0, |q| q.own_l2);
+    let mut md = String::new();
+    for ((variant, element), rows) in s {
+        if !variant.starts_with("X-FEM unstructured") {
+            continue;
+        }
+        let Some(fem) = s.get(&("FEM pre-cut".to_string(), *element)) else {
+            continue;
+        };
+        if md.is_empty() {
+            md.push_str("\nX-FEM on the unstructured uncut meshes against remeshed FEM (the pre-cut meshes) at the same number of free DOFs (FEM's error interpolated log–log between its levels; below its coarsest level, that level's; up to 1.25× its finest level's DOFs, extrapolated along its last two levels): \"lower\"/\"higher\" where the difference exceeds the reference's own L2 error, else \"unresolved\".\n\n| variant | element | level | DOFs | L2 error | FEM at these DOFs | ratio | verdict |\n| --- | --- | --- | --- | --- | --- | --- | --- |\n");
+        }
+        for r in rows {
+            let f = fem_error_at(fem, r.dofs);
+            let v = match verdict(r.l2, f, own) {
+                Verdict::Lower => "lower",
+                Verdict::Higher => "higher",
+                Verdict::Unresolved => "unresolved",
+                Verdict::NoFem => "– (beyond FEM's finest level)",
+            };
+            let _ = writeln!(
+                md,
+                "| {variant} | {element} | {} | {} | {:.3e} | {} | {} | {v} |",
+                r.level,
+                r.dofs,
+                r.l2,
+                f.map_or("–".into(), |f| format!("{f:.3e}")),
+                f.map_or("–".into(), |f| format!("{:.2}", r.l2 / f)),
+            );
+        }
+    }
+    md
+}
+
 /// One line of a log–log plot.
 struct Line {
     label: String,
@@ -115,16 +207,18 @@ fn plot(
     s: &Series<'_>,
     x: impl Fn(&Row) -> f64,
 ) -> Result<(), StudyError> {
+    // One colour per variant; Tet10 thick, Tet4 thin.
+    let mut variants: Vec<&str> = s.keys().map(|(v, _)| v.as_str()).collect();
+    variants.dedup();
     let lines: Vec<Line> = s
         .iter()
-        .enumerate()
-        .map(|(i, ((variant, element), rows))| Line {
+        .map(|((variant, element), rows)| Line {
             label: match order(rows) {
                 Some(p) => format!("{variant} {element} (order {p:.2})"),
                 None => format!("{variant} {element}"),
             },
             points: rows.iter().map(|r| (x(r), r.l2)).collect(),
-            color: COLORS[i % COLORS.len()],
+            color: COLORS[variants.iter().position(|v| v == variant).unwrap_or(0) % COLORS.len()],
             thick: *element == "tet10",
         })
         .collect();
@@ -323,7 +417,7 @@ pub fn write_report(reports: &Path, criterion_dir: &Path, machine: &str) -> Resu
         .map_err(|e| StudyError::from(e).during("the study (run `xfem-cut converge` first)"))?;
     let mut md = String::new();
     let _ = writeln!(md, "# xfem-cut: convergence and performance report\n");
-    let _ = writeln!(md, "Generated by `make report` ({machine}). Errors are relative L2 errors against the fine FEniCSx P2 solution on a graded pre-cut mesh (`refs/out/<case>/*_fine/p2.vtu`: gmsh Distance + Threshold size fields, the element size at the crack front (`slice`: at the clamped edges) ≤ 1/4 of the finest level's, the far field finer than the finest level), integrated with a degree-5 rule on every reference tetrahedron. The reference's own error is its difference from a second graded reference 1.4× coarser everywhere (same measures); a level whose error is below {RESOLVED_FACTOR}× that is marked unresolved and left out of the order fit. Opening error: the same relative error for the jump u(+) − u(−) at 12 × 24 points of the cut patch (inside the body), each side read 1e-8 m off the plane; probe error: the largest probe error over the largest probe displacement (probes on the cut read on its + side). Orders are least-squares slopes of log(error) against log(h), h = (V / elements)^(1/3). Times are wall-clock on this machine: precompute = cut set-up + element data + pattern + symbolic factorisation; solve = numeric factorisation + solve.\n");
+    let _ = writeln!(md, "Generated by `make report` ({machine}). Errors are relative L2 errors against the fine FEniCSx P2 solution on a graded pre-cut mesh (`refs/out/<case>/*_fine/p2.vtu`: gmsh Distance + Threshold size fields, the element size at the crack front (`slice`: at the clamped edges) ≤ 1/4 of the finest level's, the far field finer than the finest level), integrated with a degree-5 rule on every reference tetrahedron. The reference's own error is its difference from a second graded reference 1.4× coarser everywhere (same measures); a level whose error is below {RESOLVED_FACTOR}× that is marked unresolved and left out of the order fit. Opening error: the same relative error for the jump u(+) − u(−) at 12 × 24 points of the cut patch (inside the body), X-FEM read on each face of its cut exactly, the pre-cut meshes (FEM and the reference) 1e-8 m off the plane; probe error: the largest probe error over the largest probe displacement (probes on the cut read on its + side). Orders are least-squares slopes of log(error) against log(h), h = (V / elements)^(1/3). Times are wall-clock on this machine: precompute = cut set-up + element data + pattern + symbolic factorisation; solve = numeric factorisation + solve.\n");
     let cases = case_names(&rows);
     let quality = qualities(reports)?;
     // One table over all cases first: what a reader asks before the details.
@@ -414,6 +508,7 @@ pub fn write_report(reports: &Path, criterion_dir: &Path, machine: &str) -> Resu
                 order(rs).map_or("–".into(), |p| format!("{p:.2}"))
             );
         }
+        md.push_str(&against_remeshing(&s, q));
         // The fastest run under 1 % error.
         if let Some(best) = s
             .values()
@@ -960,6 +1055,121 @@ mod tests {
             }
         }
         assert!(fitted > 0, "no row fitted");
+    }
+
+    /// Issue 11's check on the seed beam (the committed study against the graded
+    /// references): X-FEM with tip enrichment (topological and geometric) on the
+    /// unstructured uncut meshes has a lower L2 error than remeshed FEM at the same
+    /// DOFs at L2 and L3 — lower by more than the reference's own error — for Tet4
+    /// and Tet10, and its error falls at every refinement the reference resolves.
+    ///
+    /// `gravity` and `stretch_face`. `bend_face` does not meet it (its own test
+    /// below says what it meets): there tip-enriched Tet4 stalls at 4.7 % from L3
+    /// to L4 while remeshed FEM reaches 3.3 % and the extended front 2.7 %, and
+    /// Tet10 at L2 is 1.26 % against FEM's 0.92 %.
+    #[test]
+    fn tip_enriched_xfem_beats_remeshed_fem_on_the_seed_beam() {
+        let reports = Path::new(env!("CARGO_MANIFEST_DIR")).join("reports");
+        let rows = read_csv(&reports.join("data/convergence.csv")).unwrap();
+        let quality = qualities(&reports).unwrap();
+        for case in ["gravity", "stretch_face"] {
+            let q = quality.get(case).unwrap();
+            let s = series(&rows, case);
+            for element in ["tet4", "tet10"] {
+                let fem = &s[&("FEM pre-cut".to_string(), element)];
+                for variant in [
+                    "X-FEM unstructured, tip",
+                    "X-FEM unstructured, geometric tip R=5 mm",
+                ] {
+                    let tip = &s[&(variant.to_string(), element)];
+                    for level in [2, 3] {
+                        let r = tip
+                            .iter()
+                            .find(|r| r.level == level)
+                            .unwrap_or_else(|| panic!("{case} {variant} {element}: no L{level}"));
+                        let f = fem_error_at(fem, r.dofs);
+                        eprintln!(
+                            "{case} {variant} {element} L{level}: {} DOFs, L2 {:.3e}, FEM there {f:?}, own {:.3e}",
+                            r.dofs, r.l2, q.own_l2
+                        );
+                        assert_eq!(
+                            verdict(r.l2, f, q.own_l2),
+                            Verdict::Lower,
+                            "{case} {variant} {element} L{level}"
+                        );
+                    }
+                    let kept = resolved(tip, Some(q));
+                    assert!(
+                        kept.windows(2).all(|w| w[1].l2 < w[0].l2),
+                        "{case} {variant} {element}: not falling over the resolved levels"
+                    );
+                }
+            }
+        }
+    }
+
+    /// `bend_face` (the top strip pushed over and down): tip enrichment still
+    /// opens the cut closer to the reference than the extended front and
+    /// remeshed FEM at every level (Tet4 and Tet10), and tip-enriched Tet10 has
+    /// a lower L2 error than the extended front at every level.
+    #[test]
+    fn tip_enrichment_on_bend_face_opens_the_cut_closest_to_the_reference() {
+        let reports = Path::new(env!("CARGO_MANIFEST_DIR")).join("reports");
+        let rows = read_csv(&reports.join("data/convergence.csv")).unwrap();
+        let s = series(&rows, "bend_face");
+        let get = |v: &str, e: &'static str| &s[&(v.to_string(), e)];
+        for element in ["tet4", "tet10"] {
+            let tip = get("X-FEM unstructured, tip", element);
+            let extend = get("X-FEM unstructured, extend", element);
+            let fem = get("FEM pre-cut", element);
+            for (t, x) in tip.iter().zip(extend.iter()) {
+                assert_eq!(t.level, x.level);
+                let f = fem.iter().find(|f| f.level == t.level).unwrap();
+                eprintln!(
+                    "bend_face {element} L{}: opening tip {:.3e}, extend {:.3e}, FEM {:.3e}; L2 tip {:.3e}, extend {:.3e}, FEM {:.3e}",
+                    t.level, t.opening, x.opening, f.opening, t.l2, x.l2, f.l2
+                );
+                assert!(
+                    t.opening < x.opening && t.opening < f.opening,
+                    "{element} L{}",
+                    t.level
+                );
+                if element == "tet10" {
+                    assert!(t.l2 < x.l2, "L{}", t.level);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn fem_error_is_interpolated_and_extrapolated_only_a_little() {
+        let row = |dofs: usize, l2: f64| Row {
+            case: "c".into(),
+            variant: "FEM pre-cut".into(),
+            element: "tet4",
+            level: 0,
+            h: 1.0,
+            elements: 1,
+            dofs,
+            precompute: 0.0,
+            solve: 0.0,
+            l2,
+            opening: f64::NAN,
+            probes: f64::NAN,
+        };
+        let (a, b) = (row(1000, 0.1), row(8000, 0.025));
+        let fem = [&a, &b];
+        assert_eq!(fem_error_at(&fem, 500), Some(0.1));
+        // Halfway in log DOFs: the geometric mean.
+        let mid = fem_error_at(&fem, 2828).unwrap();
+        assert!((mid - 0.05).abs() < 1e-4, "{mid}");
+        let beyond = fem_error_at(&fem, 10_000).unwrap();
+        assert!(beyond < 0.025 && beyond > 0.02, "{beyond}");
+        assert_eq!(fem_error_at(&fem, 10_001), None);
+        assert_eq!(verdict(0.01, Some(0.02), 0.005), Verdict::Lower);
+        assert_eq!(verdict(0.018, Some(0.02), 0.005), Verdict::Unresolved);
+        assert_eq!(verdict(0.03, Some(0.02), 0.005), Verdict::Higher);
+        assert_eq!(verdict(0.03, None, 0.005), Verdict::NoFem);
     }
 
     /// The pictures of every case exist, are PNGs of some size and the report shows them.
