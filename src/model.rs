@@ -257,6 +257,7 @@ impl Model {
             gravity,
             body_force,
             need_mass,
+            stiffness: true,
         };
         let mut flat = FlatElements::with_capacity(mesh.n_elements(), mesh.cells.len());
         let mut globals = Globals::new(n_shape, cut.as_ref(), need_mass);
@@ -1035,6 +1036,9 @@ struct Integrator<'a> {
     gravity: Option<Vector3<f64>>,
     body_force: Option<&'a BodyForce>,
     need_mass: bool,
+    /// Whether to integrate the stiffness (groups, gradients); without it
+    /// only the loads and masses of a tip element's block.
+    stiffness: bool,
 }
 
 impl Integrator<'_> {
@@ -1116,7 +1120,8 @@ impl Integrator<'_> {
                 let bary = crate::mesh::barycentric(&cells.verts, &q.x).unwrap_or([0.25; 4]);
                 let w = q.weight;
                 shapes.eval(&bary, cell.side, &mut vals, &mut gr);
-                if per_point {
+                if !self.stiffness {
+                } else if per_point {
                     block.groups.push(Group::point(w, block.grads.len() as u32));
                     block.grads.extend_from_slice(&gr);
                 } else {
@@ -1148,7 +1153,7 @@ impl Integrator<'_> {
             }
         }
         for (columns, weights) in &sides {
-            if !weights.is_empty() {
+            if self.stiffness && !weights.is_empty() {
                 self.dense_group(m, columns, weights, block);
             }
         }
@@ -1895,6 +1900,13 @@ impl Model {
             gravity: self.gravity,
             body_force: None,
             need_mass,
+            stiffness: true,
+        };
+        // A changed element's old block is integrated again only for what
+        // it added to the loads and masses (its stiffness is dropped whole).
+        let old_integrator = Integrator {
+            stiffness: false,
+            ..integrator
         };
         let mut stats = UpdateStats::default();
 
@@ -1949,14 +1961,16 @@ impl Model {
                 );
                 continue;
             }
-            let old_cells = element_cells(mesh, self.cut.as_ref(), e)?;
-            let mut old_block = integrator.block(&old_cells, None);
-            for s in old_block.shape_ids.iter_mut() {
-                *s = map[*s as usize];
-            }
-            globals.sub_mapped(&old_block, n_nodes);
-            if need_mass {
-                old_masses.push((e, std::mem::take(&mut old_block.mass)));
+            if need_mass || integrator.has_load() {
+                let old_cells = element_cells(mesh, self.cut.as_ref(), e)?;
+                let mut old_block = old_integrator.block(&old_cells, None);
+                for s in old_block.shape_ids.iter_mut() {
+                    *s = map[*s as usize];
+                }
+                globals.sub_mapped(&old_block, n_nodes);
+                if need_mass {
+                    old_masses.push((e, std::mem::take(&mut old_block.mass)));
+                }
             }
             let cells = element_cells(mesh, cut.as_ref(), e)?;
             let block = integrator.block(&cells, None);
