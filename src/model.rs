@@ -257,6 +257,7 @@ impl Model {
             gravity,
             body_force,
             need_mass,
+            stiffness: true,
         };
         let mut flat = FlatElements::with_capacity(mesh.n_elements(), mesh.cells.len());
         let mut globals = Globals::new(n_shape, cut.as_ref(), need_mass);
@@ -390,31 +391,37 @@ impl Model {
             .collect()
     }
 
-    /// The side an element's field is seen from at a point of side `side`.
-    fn element_side(&self, e: usize, side: i8) -> i8 {
-        match self.cut.as_ref().map(|c| &c.elements[e]) {
-            Some(ElementCut::Cut { .. }) => side,
-            Some(ElementCut::Touched { side }) => *side,
-            _ => 0,
+    /// The shape functions of element `e` built once, to be evaluated at
+    /// many points without allocation ([`ElementEvaluator::eval`]).
+    pub fn element_evaluator(&self, e: usize) -> ElementEvaluator {
+        let verts = self.mesh.vertex_points(e);
+        let dl = barycentric_gradients(&verts).unwrap_or([Vector3::zeros(); 4]);
+        let shapes = self
+            .cut
+            .as_ref()
+            .map(|c| ElementShapes::any(&self.mesh, c, e, &dl, self.heaviside_local(e)));
+        let fixed_side = match self.cut.as_ref().map(|c| &c.elements[e]) {
+            Some(ElementCut::Cut { .. }) => None,
+            Some(ElementCut::Touched { side }) => Some(*side),
+            _ => Some(0),
+        };
+        ElementEvaluator {
+            kind: self.mesh.kind,
+            verts,
+            dl,
+            len: self.elements[e].shapes.len(),
+            fixed_side,
+            shapes,
+            front: self.cut.as_ref().is_some_and(|c| !c.front_level.is_empty()),
         }
     }
 
     /// Values of element `e`'s shape functions ([`Model::element_shapes`]
     /// order) at reference point `x`, on side `side` of the cut.
     pub fn shape_values_at(&self, e: usize, x: &Point3<f64>, side: i8) -> Vec<f64> {
-        let verts = self.mesh.vertex_points(e);
-        let bary = crate::mesh::barycentric(&verts, x).unwrap_or([0.25; 4]);
-        let m = self.elements[e].shapes.len();
-        let mut vals = vec![0.0; m];
-        match &self.cut {
-            Some(c) => {
-                let dl = barycentric_gradients(&verts).unwrap_or([Vector3::zeros(); 4]);
-                let mut grads = vec![Vector3::zeros(); m];
-                let shapes = ElementShapes::any(&self.mesh, c, e, &dl, self.heaviside_local(e));
-                shapes.eval(&bary, self.element_side(e, side), &mut vals, &mut grads);
-            }
-            None => shape_values(self.mesh.kind, &bary, &mut vals),
-        }
+        let ev = self.element_evaluator(e);
+        let (mut vals, mut grads) = (vec![0.0; ev.len()], vec![Vector3::zeros(); ev.len()]);
+        ev.eval(x, side, &mut vals, &mut grads);
         vals
     }
 
@@ -427,25 +434,11 @@ impl Model {
         x: &Point3<f64>,
         side: i8,
     ) -> (Vector3<f64>, Matrix3<f64>) {
-        let verts = self.mesh.vertex_points(e);
-        let bary = crate::mesh::barycentric(&verts, x).unwrap_or([0.25; 4]);
-        let dl = barycentric_gradients(&verts).unwrap_or([Vector3::zeros(); 4]);
-        let ids = self.element_shapes(e);
-        let m = ids.len();
-        let (mut vals, mut grads) = (vec![0.0; m], vec![Vector3::zeros(); m]);
-        let side = self.element_side(e, side);
-        match &self.cut {
-            Some(c) => {
-                let shapes = ElementShapes::any(&self.mesh, c, e, &dl, self.heaviside_local(e));
-                shapes.eval(&bary, side, &mut vals, &mut grads);
-            }
-            None => {
-                shape_values(self.mesh.kind, &bary, &mut vals);
-                shape_gradients(self.mesh.kind, &bary, &dl, &mut grads);
-            }
-        }
+        let ev = self.element_evaluator(e);
+        let (mut vals, mut grads) = (vec![0.0; ev.len()], vec![Vector3::zeros(); ev.len()]);
+        ev.eval(x, side, &mut vals, &mut grads);
         let (mut u, mut gu) = (Vector3::zeros(), Matrix3::zeros());
-        for (a, &s) in ids.iter().enumerate() {
+        for (a, &s) in self.element_shapes(e).iter().enumerate() {
             let s = s as usize;
             let da = Vector3::new(d[3 * s], d[3 * s + 1], d[3 * s + 2]);
             u += da * vals[a];
@@ -458,40 +451,48 @@ impl Model {
     /// integrating fields with a front singularity: the element's cells, with
     /// rules collapsed onto the front where they touch it, degree 5 elsewhere.
     pub fn field_points(&self, e: usize) -> Vec<(Point3<f64>, f64, i8)> {
-        let verts = self.mesh.vertex_points(e);
-        let cells: Vec<([Point3<f64>; 4], i8)> = match self.cut.as_ref().map(|c| &c.elements[e]) {
-            Some(ElementCut::Cut { sub_tets, .. }) => {
-                sub_tets.iter().map(|s| (s.vertices, s.side)).collect()
-            }
-            Some(ElementCut::Touched { side }) => vec![(verts, *side)],
-            _ => vec![(verts, 0)],
-        };
-        let dl = barycentric_gradients(&verts).unwrap_or([Vector3::zeros(); 4]);
         let mut out = Vec::new();
-        for (cell, side) in cells {
-            match &self.cut {
-                Some(c) if !c.front_level.is_empty() => {
-                    let shapes = ElementShapes::any(&self.mesh, c, e, &dl, Vec::new());
-                    out.extend(
-                        shapes
-                            .cell_rule(&cell)
-                            .into_iter()
-                            .map(|q| (q.x, q.weight, side)),
-                    );
-                }
-                _ => {
-                    let v = tet_volume(&cell);
-                    out.extend(quadrature::DEGREE5.iter().map(|q| {
-                        let x = cell
-                            .iter()
-                            .zip(q.bary)
-                            .fold(Vector3::zeros(), |s, (p, l)| s + p.coords * l);
-                        (Point3::from(x), q.weight * v, side)
-                    }));
+        self.field_points_into(e, &self.element_evaluator(e), &mut out);
+        out
+    }
+
+    /// [`Model::field_points`] of element `e` into `out` (cleared first),
+    /// with the element's evaluator `ev` (its front rules).
+    pub fn field_points_into(
+        &self,
+        e: usize,
+        ev: &ElementEvaluator,
+        out: &mut Vec<(Point3<f64>, f64, i8)>,
+    ) {
+        out.clear();
+        let verts = ev.verts;
+        let mut push_cell = |cell: &[Point3<f64>; 4], side: i8| match (&ev.shapes, ev.front) {
+            (Some(shapes), true) => out.extend(
+                shapes
+                    .cell_rule(cell)
+                    .into_iter()
+                    .map(|q| (q.x, q.weight, side)),
+            ),
+            _ => {
+                let v = tet_volume(cell);
+                out.extend(quadrature::DEGREE5.iter().map(|q| {
+                    let x = cell
+                        .iter()
+                        .zip(q.bary)
+                        .fold(Vector3::zeros(), |s, (p, l)| s + p.coords * l);
+                    (Point3::from(x), q.weight * v, side)
+                }));
+            }
+        };
+        match self.cut.as_ref().map(|c| &c.elements[e]) {
+            Some(ElementCut::Cut { sub_tets, .. }) => {
+                for s in sub_tets {
+                    push_cell(&s.vertices, s.side);
                 }
             }
+            Some(ElementCut::Touched { side }) => push_cell(&verts, *side),
+            _ => push_cell(&verts, 0),
         }
-        out
     }
 
     /// Displacement at reference point `x` inside element `e` on side `side`.
@@ -529,6 +530,46 @@ impl Model {
 /// Distance to the front, relative to the element size, within which a point
 /// is on the front (the round-off of the interpolated level sets is ~1e-15 h).
 pub const FRONT_SNAP: f64 = 1e-12;
+
+/// The shape functions of one element of a model (standard, Heaviside and
+/// tip ones, in [`Model::element_shapes`] order), built once by
+/// [`Model::element_evaluator`] and evaluated at many points without allocation.
+pub struct ElementEvaluator {
+    kind: ElementKind,
+    verts: [Point3<f64>; 4],
+    dl: [Vector3<f64>; 4],
+    len: usize,
+    /// The side the element's field is seen from (`None`: a cut element, the point's own).
+    fixed_side: Option<i8>,
+    /// With a cut: its shape functions (Heaviside and tip ones included).
+    shapes: Option<ElementShapes>,
+    /// Whether the cut has a tip front (the field rules collapse onto it).
+    front: bool,
+}
+
+impl ElementEvaluator {
+    /// Number of shape functions.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Values and gradients of the shape functions at reference point `x`,
+    /// on side `side` of the cut; `vals` and `grads` hold [`Self::len`] each.
+    pub fn eval(&self, x: &Point3<f64>, side: i8, vals: &mut [f64], grads: &mut [Vector3<f64>]) {
+        let bary = crate::mesh::barycentric(&self.verts, x).unwrap_or([0.25; 4]);
+        match &self.shapes {
+            Some(shapes) => shapes.eval(&bary, self.fixed_side.unwrap_or(side), vals, grads),
+            None => {
+                shape_values(self.kind, &bary, vals);
+                shape_gradients(self.kind, &bary, &self.dl, grads);
+            }
+        }
+    }
+}
 
 /// The shape functions of an element holding tip-enriched nodes, evaluated
 /// point by point: its nodes' N_k, the shifted Heaviside ψ N_k of its
@@ -1009,6 +1050,9 @@ struct Integrator<'a> {
     gravity: Option<Vector3<f64>>,
     body_force: Option<&'a BodyForce>,
     need_mass: bool,
+    /// Whether to integrate the stiffness (groups, gradients); without it
+    /// only the loads and masses of a tip element's block.
+    stiffness: bool,
 }
 
 impl Integrator<'_> {
@@ -1090,7 +1134,8 @@ impl Integrator<'_> {
                 let bary = crate::mesh::barycentric(&cells.verts, &q.x).unwrap_or([0.25; 4]);
                 let w = q.weight;
                 shapes.eval(&bary, cell.side, &mut vals, &mut gr);
-                if per_point {
+                if !self.stiffness {
+                } else if per_point {
                     block.groups.push(Group::point(w, block.grads.len() as u32));
                     block.grads.extend_from_slice(&gr);
                 } else {
@@ -1122,7 +1167,7 @@ impl Integrator<'_> {
             }
         }
         for (columns, weights) in &sides {
-            if !weights.is_empty() {
+            if self.stiffness && !weights.is_empty() {
                 self.dense_group(m, columns, weights, block);
             }
         }
@@ -1869,6 +1914,13 @@ impl Model {
             gravity: self.gravity,
             body_force: None,
             need_mass,
+            stiffness: true,
+        };
+        // A changed element's old block is integrated again only for what
+        // it added to the loads and masses (its stiffness is dropped whole).
+        let old_integrator = Integrator {
+            stiffness: false,
+            ..integrator
         };
         let mut stats = UpdateStats::default();
 
@@ -1923,14 +1975,16 @@ impl Model {
                 );
                 continue;
             }
-            let old_cells = element_cells(mesh, self.cut.as_ref(), e)?;
-            let mut old_block = integrator.block(&old_cells, None);
-            for s in old_block.shape_ids.iter_mut() {
-                *s = map[*s as usize];
-            }
-            globals.sub_mapped(&old_block, n_nodes);
-            if need_mass {
-                old_masses.push((e, std::mem::take(&mut old_block.mass)));
+            if need_mass || integrator.has_load() {
+                let old_cells = element_cells(mesh, self.cut.as_ref(), e)?;
+                let mut old_block = old_integrator.block(&old_cells, None);
+                for s in old_block.shape_ids.iter_mut() {
+                    *s = map[*s as usize];
+                }
+                globals.sub_mapped(&old_block, n_nodes);
+                if need_mass {
+                    old_masses.push((e, std::mem::take(&mut old_block.mass)));
+                }
             }
             let cells = element_cells(mesh, cut.as_ref(), e)?;
             let block = integrator.block(&cells, None);
