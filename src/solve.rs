@@ -376,6 +376,29 @@ impl Cholesky {
         Ok(())
     }
 
+    /// Factorises A + μ diag|A| for the smallest μ of 10⁻⁴, 10⁻³, …, 10² that
+    /// is positive definite (`shifted`: scratch, resized to A's entries) and
+    /// returns that μ, or `None` where none is: for a Newton matrix that is
+    /// indefinite away from a stable equilibrium (buckling), the shifted one
+    /// gives a descent direction that keeps the geometric softening.
+    pub fn factorize_shifted(&mut self, values: &[f64], shifted: &mut Vec<f64>) -> Option<f64> {
+        let mut mu = 1e-4;
+        while mu <= 1e2 {
+            shifted.clear();
+            shifted.extend_from_slice(values);
+            for c in 0..self.pattern.n {
+                if let Some(at) = self.pattern.position(c, c) {
+                    shifted[at] += mu * values[at].abs();
+                }
+            }
+            if self.factorize(shifted).is_ok() {
+                return Some(mu);
+            }
+            mu *= 10.0;
+        }
+        None
+    }
+
     /// Solves A x = b in place (b ← x) with the last factorisation.
     pub fn solve_in_place(&mut self, b: &mut [f64]) {
         assert!(self.factored, "solve before a successful factorisation");

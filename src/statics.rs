@@ -90,6 +90,7 @@ pub fn solve_static_along(
     let mut start = vec![0.0; n];
     let load_norm = norm(&model.load);
     let mut tangent = vec![0.0; model.pattern.nnz()];
+    let mut shifted = Vec::new();
     let mut rot = Rotations::identity(model);
     let mut ws = Workspace::new(model);
     let mut iterations = Vec::with_capacity(steps);
@@ -149,20 +150,26 @@ pub fn solve_static_along(
                         return Err(e.into());
                     }
                     // Not positive definite away from a stable equilibrium
-                    // (compression, buckling): this iteration takes R K Rᵀ.
-                    evaluate(
-                        model,
-                        &d,
-                        &mut rot,
-                        &mut ws,
-                        Request {
-                            forces: None,
-                            tangent: Some(&mut tangent),
-                            update_rotations: false,
-                            exact_tangent: false,
-                        },
-                    );
-                    chol.factorize(&tangent)?;
+                    // (compression, buckling): this iteration takes the exact
+                    // tangent shifted by μ diag|K| (the smallest μ = 10⁻⁴…10²
+                    // that factorises: a descent direction for Π that keeps
+                    // the geometric softening, so Newton can walk off a
+                    // saddle into a buckled state), else R K Rᵀ.
+                    if chol.factorize_shifted(&tangent, &mut shifted).is_none() {
+                        evaluate(
+                            model,
+                            &d,
+                            &mut rot,
+                            &mut ws,
+                            Request {
+                                forces: None,
+                                tangent: Some(&mut tangent),
+                                update_rotations: false,
+                                exact_tangent: false,
+                            },
+                        );
+                        chol.factorize(&tangent)?;
+                    }
                 }
             }
             chol.solve_in_place(&mut r_free);
