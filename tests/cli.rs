@@ -403,3 +403,30 @@ fn the_plan_names_the_mesh_given_by_the_mesh_option() {
         "{line}"
     );
 }
+
+/// A blade's `path` may start with the blade itself (times and keyframes one
+/// to one) or leave it out (the blade is the keyframe at times[0]): both read
+/// as the same keyframes.
+#[test]
+fn a_blade_path_may_leave_out_the_blade_as_its_first_keyframe() {
+    use xfem_cut::scene::{CutGeometry, Scene};
+    let blade = "blade = [[0.0, -0.01, 0.1], [0.0, 0.07, 0.1]]";
+    let later =
+        "[[0.01, -0.01, 0.1], [0.01, 0.07, 0.1]], [[0.015, -0.01, 0.1], [0.015, 0.07, 0.12]]";
+    let keyframes = |path: &str| {
+        let text = with_cut(&format!(
+            "{blade}\npath = [{path}]\ntimes = [0.1, 0.2, 0.4]"
+        ));
+        let scene = Scene::parse(&text, Path::new("case.toml")).unwrap();
+        match &scene.cuts[0].geometry {
+            CutGeometry::Blade { keyframes } => keyframes.clone(),
+            _ => panic!("a blade"),
+        }
+    };
+    let with = keyframes(&format!("[[0.0, -0.01, 0.1], [0.0, 0.07, 0.1]], {later}"));
+    let without = keyframes(later);
+    assert_eq!(with.len(), 3);
+    assert_eq!(with, without);
+    assert_eq!(with[0].0, 0.1);
+    assert_eq!(with[0].1[1].y, 0.07);
+}

@@ -641,13 +641,23 @@ fn validate_cut(c: &Checker, k: &str, t: CutFile, base: &Path) -> Result<CutSpec
                 let times = t
                     .times
                     .ok_or_else(|| c.err(key("times"), "missing required key (with path)"))?;
+                // The blade may be left out of the path: then it is the
+                // keyframe at times[0] and the path's edges follow it.
+                let path: Vec<[Vec3; 2]> = if times.len() == path.len() + 1 {
+                    std::iter::once([a.coords.into(), b.coords.into()])
+                        .chain(path)
+                        .collect()
+                } else {
+                    path
+                };
                 if times.len() != path.len() {
                     return Err(c.err(
                         key("times"),
                         format!(
-                            "has {} entries but path has {} keyframes",
+                            "has {} entries but path has {} keyframes (or {} with the blade first)",
                             times.len(),
-                            path.len()
+                            path.len(),
+                            path.len() + 1
                         ),
                     ));
                 }
