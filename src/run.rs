@@ -12,7 +12,7 @@ use crate::model::Model;
 use crate::plan::Plan;
 use crate::scene::{Analysis, Scene, SceneError};
 use crate::solve::{Cholesky, Parallelism, SolveError};
-use crate::statics::{solve_static, StaticError};
+use crate::statics::{solve_static, StaticError, StaticOptions};
 use nalgebra::{Point3, Vector3};
 use std::path::Path;
 use std::time::Instant;
@@ -77,15 +77,32 @@ pub struct RunResult {
     pub progressive_frames: Vec<(f64, VtuData)>,
 }
 
-/// Threads of a run (one: the figures the report quotes are per core).
-const PARALLELISM: Parallelism = Parallelism::SEQUENTIAL;
-
-/// Solves `scene` at `level` (or on `mesh_override`).
+/// Solves `scene` at `level` (or on `mesh_override`) on one thread (the
+/// figures the report quotes are per core).
 pub fn solve_scene(
     scene: &Scene,
     level: usize,
     mesh_override: Option<&Path>,
     keep_frames: bool,
+) -> Result<RunResult, RunError> {
+    solve_scene_with(
+        scene,
+        level,
+        mesh_override,
+        keep_frames,
+        Parallelism::SEQUENTIAL,
+    )
+}
+
+/// [`solve_scene`] with the numeric factorisations and the element loops
+/// (forces, tangents) of static and dynamic scenes on `parallelism`'s threads
+/// (a blade's sweep runs on one).
+pub fn solve_scene_with(
+    scene: &Scene,
+    level: usize,
+    mesh_override: Option<&Path>,
+    keep_frames: bool,
+    parallelism: Parallelism,
 ) -> Result<RunResult, RunError> {
     let file = scene.file.display().to_string();
     let t0 = Instant::now();
@@ -123,7 +140,7 @@ pub fn solve_scene(
     let t1 = Instant::now();
     // The fill-reducing rule of `Cholesky::fill_reducing` (METIS nested
     // dissection on the node graph from 10k equations, else the smaller of it and AMD).
-    let chol = Cholesky::fill_reducing(&model.pattern, Some(&equation_shapes(&model)), PARALLELISM)
+    let chol = Cholesky::fill_reducing(&model.pattern, Some(&equation_shapes(&model)), parallelism)
         .map_err(|source| RunError::Solve {
             file: file.clone(),
             source,
@@ -141,10 +158,15 @@ pub fn solve_scene(
     match &scene.analysis {
         Analysis::Static(opts) => {
             let mut chol = chol;
-            let sol = solve_static(&model, &mut chol, opts).map_err(|source| RunError::Static {
-                file: file.clone(),
-                source,
-            })?;
+            let opts = StaticOptions {
+                parallelism,
+                ..*opts
+            };
+            let sol =
+                solve_static(&model, &mut chol, &opts).map_err(|source| RunError::Static {
+                    file: file.clone(),
+                    source,
+                })?;
             timings.solve = t2.elapsed().as_secs_f64();
             Ok(RunResult {
                 model,
@@ -170,6 +192,7 @@ pub fn solve_scene(
                     file: file.clone(),
                     source,
                 })?;
+            nm.set_parallelism(parallelism);
             // Start at rest in the reference state with the acceleration of the loads (gravity).
             nm.initialise_acceleration()
                 .map_err(|source| RunError::Dynamic {

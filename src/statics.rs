@@ -3,7 +3,7 @@
 
 use crate::assembly::{evaluate, gather_free, scatter_free_add, Request, Rotations, Workspace};
 use crate::model::{Formulation, Model};
-use crate::solve::{Cholesky, SolveError};
+use crate::solve::{Cholesky, Parallelism, SolveError};
 
 /// Options of the static solve.
 #[derive(Debug, Clone, Copy)]
@@ -18,6 +18,9 @@ pub struct StaticOptions {
     /// body in bending needs), falling back to R K Rᵀ where that tangent is
     /// not positive definite; false: R K Rᵀ throughout (the seed's).
     pub exact_tangent: bool,
+    /// Threads of the element loops (forces, tangents); the factorisation's
+    /// are the `Cholesky`'s own.
+    pub parallelism: Parallelism,
 }
 
 impl Default for StaticOptions {
@@ -27,6 +30,7 @@ impl Default for StaticOptions {
             tolerance: 1e-10,
             max_iterations: 50,
             exact_tangent: true,
+            parallelism: Parallelism::SEQUENTIAL,
         }
     }
 }
@@ -92,7 +96,7 @@ pub fn solve_static_along(
     let mut tangent = vec![0.0; model.pattern.nnz()];
     let mut shifted = Vec::new();
     let mut rot = Rotations::identity(model);
-    let mut ws = Workspace::new(model);
+    let mut ws = Workspace::with_parallelism(model, opts.parallelism);
     let mut iterations = Vec::with_capacity(steps);
     let mut residual = f64::INFINITY;
     let factor_start = chol.factorisations;

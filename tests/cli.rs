@@ -430,3 +430,56 @@ fn a_blade_path_may_leave_out_the_blade_as_its_first_keyframe() {
     assert_eq!(with[0].0, 0.1);
     assert_eq!(with[0].1[1].y, 0.07);
 }
+
+/// `XFEM_THREADS` runs the factorisation and the element loops on that many
+/// threads: the same probes (to round-off), the run says so; a bad value is
+/// refused naming the variable.
+#[test]
+fn xfem_threads_runs_on_more_threads_with_the_same_answer() {
+    let dir = tempfile::tempdir().unwrap();
+    let case = dir.path().join("case.toml");
+    std::fs::write(&case, with_cut(PATCH).replace("[[1, 2, 4]]", "[[2, 4, 9]]")).unwrap();
+    let run = |threads: &str, out: &str| {
+        let o = Command::new(bin())
+            .env("XFEM_THREADS", threads)
+            .args(["run", case.to_str().unwrap(), "--out"])
+            .arg(dir.path().join(out))
+            .output()
+            .unwrap();
+        (
+            o.status.success(),
+            String::from_utf8_lossy(&o.stdout).to_string(),
+            String::from_utf8_lossy(&o.stderr).to_string(),
+        )
+    };
+    let probes = |out: &str| -> Vec<f64> {
+        std::fs::read_to_string(dir.path().join(out).join("probes.csv"))
+            .unwrap()
+            .lines()
+            .skip(1)
+            .flat_map(|l| {
+                l.split(',')
+                    .skip(3)
+                    .map(|v| v.parse::<f64>().unwrap())
+                    .collect::<Vec<_>>()
+            })
+            .collect()
+    };
+    let (ok1, out1, err1) = run("1", "one");
+    let (ok2, out2, err2) = run("2", "two");
+    assert!(ok1 && ok2, "{err1} {err2}");
+    assert!(!out1.contains("threads:"));
+    assert!(out2.contains("threads: 2"), "{out2}");
+    let (a, b) = (probes("one"), probes("two"));
+    let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    for (x, y) in a.iter().zip(&b) {
+        assert!((x - y).abs() <= 1e-12 * scale, "{x} vs {y}");
+    }
+    let (ok, _, err) = run("two", "bad");
+    assert!(!ok);
+    assert!(
+        err.contains("XFEM_THREADS") && err.contains("\"two\""),
+        "{err}"
+    );
+    assert_eq!(err.trim().lines().count(), 1);
+}

@@ -111,6 +111,7 @@ fn corotational_solve_equals_scikit_fem() {
             tolerance,
             max_iterations: 300,
             exact_tangent: true,
+            ..Default::default()
         });
         let ours = solve_scene(&scene, 0, Some(&msh), false).unwrap();
         let reference = read_reference(&vtu).unwrap();
