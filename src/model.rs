@@ -1551,56 +1551,143 @@ fn number_dofs(
     (equation, prescribed, n_free)
 }
 
-/// Adds the lower-triangle entries of an element with equations `dofs` to `cols`.
-fn push_entries(dofs: &[u32], cols: &mut [Vec<usize>]) {
-    for &r in dofs {
-        if r == NONE {
-            continue;
-        }
-        for &c in dofs {
-            if c != NONE && r >= c {
-                cols[c as usize].push(r as usize);
-            }
-        }
-    }
-}
-
-/// Writes the CSC positions of element `el`'s (3m)² entries into `scatter`.
+/// Writes the CSC positions of element `el`'s (3m)² entries into `scatter`
+/// (`dofs`: scratch for its equations).
 fn element_scatter(
     el: &ElementData,
     shapes: &[u32],
     equation: &[u32],
     pattern: &Pattern,
     scatter: &mut [u32],
+    dofs: &mut Vec<u32>,
 ) {
-    let dofs = element_equations(shapes, equation);
+    dofs.clear();
+    dofs.extend(
+        shapes
+            .iter()
+            .flat_map(|&s| (0..3).map(move |c| equation[3 * s as usize + c])),
+    );
     let n = dofs.len();
-    for (p, &r) in dofs.iter().enumerate() {
-        for (q, &c) in dofs.iter().enumerate() {
-            scatter[el.scatter + p * n + q] = if r != NONE && c != NONE && r >= c {
-                pattern
-                    .position(r as usize, c as usize)
-                    .expect("pattern holds every element entry") as u32
-            } else {
-                NONE
+    for (q, &c) in dofs.iter().enumerate() {
+        let column =
+            (c != NONE).then(|| pattern.col_ptr[c as usize]..pattern.col_ptr[c as usize + 1]);
+        // The next component of the same shape function (equation c − 1 before
+        // it): its column holds the same rows less the diagonal c − 1, so a
+        // row's position there is its position in column c − 1 shifted.
+        let shift = (q % 3 != 0 && c != NONE && c > 0 && dofs[q - 1] == c - 1).then(|| {
+            pattern.col_ptr[c as usize] as isize - pattern.col_ptr[c as usize - 1] as isize - 1
+        });
+        // A shape function's components have consecutive equations, so the
+        // next row is most often the next entry of the column.
+        let mut last: Option<(u32, usize)> = None;
+        for (p, &r) in dofs.iter().enumerate() {
+            let at = el.scatter + p * n + q;
+            let Some(col) = column.clone().filter(|_| r != NONE && r >= c) else {
+                scatter[at] = NONE;
+                continue;
             };
+            let shifted = shift.and_then(|sh| {
+                let before = scatter[at - 1];
+                let pos = (before as isize + sh) as usize;
+                (before != NONE && col.contains(&pos) && pattern.row_idx[pos] == r as usize)
+                    .then_some(pos)
+            });
+            let pos = match (shifted, last) {
+                (Some(pos), _) => pos,
+                (None, Some((lr, lp)))
+                    if r == lr + 1 && lp + 1 < col.end && pattern.row_idx[lp + 1] == r as usize =>
+                {
+                    lp + 1
+                }
+                _ => {
+                    col.start
+                        + pattern.row_idx[col.clone()]
+                            .binary_search(&(r as usize))
+                            .expect("pattern holds every element entry")
+                }
+            };
+            scatter[at] = pos as u32;
+            last = Some((r, pos));
         }
     }
 }
 
-/// Step 4: the lower-triangular pattern of the free system and each element's scatter map.
+/// Step 4: the lower-triangular pattern of the free system and each
+/// element's scatter map. The pattern is built per shape function: its
+/// neighbours (the shape functions it shares an element with, found through
+/// the shape → element incidence with a marker) give the rows of its
+/// components' columns, so no element entry is pushed and sorted twice.
 fn pattern_and_scatter(
     flat: &FlatElements,
     equation: &[u32],
     n_free: usize,
 ) -> (Pattern, Vec<u32>) {
-    let mut cols: Vec<Vec<usize>> = vec![Vec::new(); n_free];
+    let n_shape = equation.len() / 3;
+    // Shape function → elements (CSR).
+    let mut start = vec![0usize; n_shape + 1];
     for el in &flat.elements {
-        let dofs = element_equations(&flat.shape_ids[el.shapes.clone()], equation);
-        push_entries(&dofs, &mut cols);
+        for &s in &flat.shape_ids[el.shapes.clone()] {
+            start[s as usize + 1] += 1;
+        }
     }
-    let pattern = Pattern::from_entries(n_free, cols);
+    for s in 0..n_shape {
+        start[s + 1] += start[s];
+    }
+    let mut fill = start.clone();
+    let mut incidence = vec![0u32; start[n_shape]];
+    for (e, el) in flat.elements.iter().enumerate() {
+        for &s in &flat.shape_ids[el.shapes.clone()] {
+            incidence[fill[s as usize]] = e as u32;
+            fill[s as usize] += 1;
+        }
+    }
+    // The DOF of each equation (columns come in equation order).
+    let mut dof_of = vec![0u32; n_free];
+    for (dof, &eq) in equation.iter().enumerate() {
+        if eq != NONE {
+            dof_of[eq as usize] = dof as u32;
+        }
+    }
+    let mut mark = vec![u32::MAX; n_shape];
+    let mut neighbours: Vec<u32> = Vec::new();
+    let mut neighbours_of = u32::MAX;
+    let mut col_ptr = Vec::with_capacity(n_free + 1);
+    let mut row_idx = Vec::new();
+    col_ptr.push(0);
+    for c in 0..n_free {
+        let s = dof_of[c] / 3;
+        if s != neighbours_of {
+            neighbours.clear();
+            for &e in &incidence[start[s as usize]..start[s as usize + 1]] {
+                let el = &flat.elements[e as usize];
+                for &t in &flat.shape_ids[el.shapes.clone()] {
+                    if mark[t as usize] != s {
+                        mark[t as usize] = s;
+                        neighbours.push(t);
+                    }
+                }
+            }
+            neighbours_of = s;
+        }
+        let first = row_idx.len();
+        for &t in &neighbours {
+            for k in 0..3 {
+                let r = equation[3 * t as usize + k];
+                if r != NONE && r as usize >= c {
+                    row_idx.push(r as usize);
+                }
+            }
+        }
+        row_idx[first..].sort_unstable();
+        col_ptr.push(row_idx.len());
+    }
+    let pattern = Pattern {
+        n: n_free,
+        col_ptr,
+        row_idx,
+    };
     let mut scatter = vec![NONE; flat.scatter_len];
+    let mut dofs = Vec::new();
     for el in &flat.elements {
         element_scatter(
             el,
@@ -1608,6 +1695,7 @@ fn pattern_and_scatter(
             equation,
             &pattern,
             &mut scatter,
+            &mut dofs,
         );
     }
     (pattern, scatter)
@@ -2098,6 +2186,7 @@ impl Model {
             row_idx,
         };
         let mut scatter = vec![NONE; flat.scatter_len];
+        let mut dofs = Vec::new();
         let mut next_changed = changed.iter().map(|(e, _)| *e).peekable();
         for (e, el) in flat.elements.iter().enumerate() {
             if next_changed.next_if_eq(&e).is_some() {
@@ -2107,6 +2196,7 @@ impl Model {
                     &equation,
                     &pattern,
                     &mut scatter,
+                    &mut dofs,
                 );
             } else {
                 let old_el = &self.elements[e];

@@ -240,6 +240,10 @@ impl Ordering {
     }
 }
 
+/// Entries of L from which the numeric factorisation and the solves run on
+/// more than one thread (when asked to).
+pub const PARALLEL_FACTOR_FROM: usize = 40_000_000;
+
 /// Order from which [`Cholesky::fill_reducing`] takes nested dissection without comparing.
 pub const NESTED_DISSECTION_FROM: usize = 10_000;
 
@@ -328,6 +332,15 @@ impl Cholesky {
             CholeskySymbolicParams::default(),
         )
         .map_err(|e| SolveError::Symbolic(format!("{e:?}")))?;
+        // faer's parallel numeric factorisation paid only for large factors
+        // here (static solves on 2 cores, `refs/bench_static.py` and
+        // `examples/static_profile.rs`: nnz(L) = 3.8M 77 → 135 ms, 24M and
+        // 25M ±5 %, 81M 1.35× faster): below that size one thread.
+        let par = if symbolic.len_val() < PARALLEL_FACTOR_FROM {
+            Par::Seq
+        } else {
+            par
+        };
         let factor_req = symbolic.factorize_numeric_llt_scratch::<f64>(par, Spec::default());
         let solve_req = symbolic.solve_in_place_scratch::<f64>(1, par);
         Ok(Cholesky {

@@ -569,6 +569,9 @@ pub fn write_report(reports: &Path, criterion_dir: &Path, machine: &str) -> Resu
         md.push('\n');
     }
     md.push_str(&exact_section(reports)?);
+    if let Some(section) = static_section(reports)? {
+        md.push_str(&section);
+    }
     if let Some(section) = sweep_section(reports)? {
         md.push_str(&section);
     }
@@ -625,6 +628,66 @@ pub fn write_report(reports: &Path, criterion_dir: &Path, machine: &str) -> Resu
     let readme = reports.join("README.md");
     std::fs::rename(&tmp, &readme).map_err(|e| IoError::os(&readme, "rename onto", e))?;
     Ok(())
+}
+
+/// One row of `data/static_vs_fenicsx.csv` (`refs/bench_static.py`).
+#[derive(Debug, serde::Deserialize)]
+struct StaticRow {
+    element: String,
+    h_mm: f64,
+    cores: usize,
+    dofs_ours_free: usize,
+    dofs_fenicsx: usize,
+    ours_s: f64,
+    ours_peak_mb: f64,
+    fenicsx_1rank_s: f64,
+    fenicsx_1rank_peak_mb: f64,
+    fenicsx_2ranks_s: Option<f64>,
+    speedup: f64,
+}
+
+/// The static linear solve against FEniCSx at equal cores, 10k–400k DOFs
+/// (`data/static_vs_fenicsx.csv`, written by `refs/bench_static.py`).
+fn static_section(reports: &Path) -> Result<Option<String>, StudyError> {
+    let csv = reports.join("data/static_vs_fenicsx.csv");
+    if !csv.exists() {
+        return Ok(None);
+    }
+    let rows: Vec<StaticRow> = crate::io::csv::read_rows(&csv, false)?;
+    let mut md = String::from(
+        "## Static solve against FEniCSx at equal cores
+
+",
+    );
+    md.push_str("The `gravity` case without its cut (FEM) on pre-cut gmsh beam meshes of 10k to 400k DOFs, our Tet4 / Tet10 against FEniCSx P1 / P2 on the same mesh (`refs/bench_static.py`, run on a quiet machine). Ours: element data + pattern + ordering and symbolic factorisation + assembly, numeric factorisation and solve, with `XFEM_THREADS` = cores (numeric factorisation and element loops); FEniCSx (dolfinx 0.5.2, MUMPS, OpenBLAS): assembly + solve as `refs/solve_fenicsx.py` times them (JIT excluded), one rank with `OPENBLAS_NUM_THREADS` = `OMP_NUM_THREADS` = cores, and on 2 cores also two MPI ranks of one thread; the speed-up is against the faster. Neither counts reading the mesh. Peak memory: the process's largest resident set (single-process runs).\n\n| element | h (mm) | DOFs (ours free / FEniCSx) | cores | ours (s) | ours peak (MB) | FEniCSx 1 rank (s) | FEniCSx peak (MB) | FEniCSx 2 ranks (s) | speed-up |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
+    for r in &rows {
+        let _ = writeln!(
+            md,
+            "| {} | {:.1} | {} / {} | {} | {:.2} | {:.0} | {:.2} | {:.0} | {} | {:.2}× |",
+            r.element,
+            r.h_mm,
+            r.dofs_ours_free,
+            r.dofs_fenicsx,
+            r.cores,
+            r.ours_s,
+            r.ours_peak_mb,
+            r.fenicsx_1rank_s,
+            r.fenicsx_1rank_peak_mb,
+            r.fenicsx_2ranks_s
+                .map_or("–".to_string(), |t| format!("{t:.2}")),
+            r.speedup
+        );
+    }
+    let low = rows.iter().map(|r| r.speedup).fold(f64::INFINITY, f64::min);
+    let high = rows
+        .iter()
+        .map(|r| r.speedup)
+        .fold(f64::NEG_INFINITY, f64::max);
+    let _ = writeln!(
+        md,
+        "\nSpeed-up from {low:.2}× to {high:.2}× over these sizes and cores. `cargo run --release --example static_profile -- CASE MESH` splits one of our solves into its parts.\n"
+    );
+    Ok(Some(md))
 }
 
 /// The code-verification section: the exact-solution study
