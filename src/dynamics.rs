@@ -717,8 +717,8 @@ impl<'m> Newmark<'m> {
             return false;
         };
         let limit = border_limit(max_border, base.pattern.n, self.chol.factor_nnz());
-        base.solve = BorderedSolve::grown(
-            base.previous.take().as_ref(),
+        base.solve = BorderedSolve::grown_from(
+            base.previous.take(),
             &mut self.chol,
             &base.pattern,
             &base.values,

@@ -468,6 +468,7 @@ pub const BORDER_TOLERANCE: f64 = 1e-13;
 /// border is the Schur complement of the new equations instead,
 /// S = C − B A_old⁻¹ Bᵀ: x₂ = S⁻¹(b₂ − B y₁), x₁ = y₁ − A_old⁻¹Bᵀ x₂, one
 /// product with an n_old × k_new matrix (half the Woodbury's columns).
+#[derive(Clone)]
 pub struct BorderedSolve {
     /// Columns of Z solved for when it was built (the others reused).
     solved: usize,
@@ -527,11 +528,36 @@ impl BorderedSolve {
         new_values: &[f64],
         tol: f64,
     ) -> Option<BorderedSolve> {
+        BorderedSolve::grown_from(
+            previous.cloned(),
+            chol,
+            old,
+            old_values,
+            new,
+            new_values,
+            tol,
+        )
+    }
+
+    /// [`BorderedSolve::grown`] taking `previous` whole: a Schur-complement
+    /// border whose new equations extend the previous one's keeps its Z
+    /// (n_old × k) in place and appends the new columns, so an event
+    /// neither copies nor zeroes the columns it reuses.
+    pub fn grown_from(
+        previous: Option<BorderedSolve>,
+        chol: &mut Cholesky,
+        old: &Pattern,
+        old_values: &[f64],
+        new: &Pattern,
+        new_values: &[f64],
+        tol: f64,
+    ) -> Option<BorderedSolve> {
         let (n_old, n) = (old.n, new.n);
         if n < n_old {
             return None;
         }
         let previous = previous.filter(|p| p.n_old == n_old);
+        let previous_ref = previous.as_ref();
         let k_new = n - n_old;
         let diagonal_of: Vec<f64> = (0..n)
             .map(|c| new.position(c, c).map_or(0.0, |p| new_values[p]))
@@ -591,6 +617,9 @@ impl BorderedSolve {
         changed.dedup();
         let s = changed.len();
         let k = s + 2 * k_new;
+        if s == 0 && k_new > 0 {
+            return BorderedSolve::schur(previous, chol, n_old, coupling, diagonal, &c_minus_d);
+        }
         let slot = |eq: usize| changed.binary_search(&eq).expect("changed");
         let mut w = nalgebra::DMatrix::<f64>::zeros(k, k);
         for &(r, c, d) in &e {
@@ -616,7 +645,7 @@ impl BorderedSolve {
         let m = s + k_new;
         let mut z = nalgebra::DMatrix::<f64>::zeros(n, k);
         let reused = |j: usize| -> Option<usize> {
-            let p = previous?;
+            let p = previous_ref?;
             let ps = p.changed.len();
             if j < s {
                 p.changed.binary_search(&changed[j]).ok()
@@ -627,7 +656,7 @@ impl BorderedSolve {
         };
         let mut solve = Vec::new();
         for j in 0..m {
-            match (reused(j), previous) {
+            match (reused(j), previous_ref) {
                 (Some(pj), Some(p)) => z
                     .view_mut((0, j), (n_old, 1))
                     .copy_from(&p.z.view((0, pj), (n_old, 1))),
@@ -666,28 +695,6 @@ impl BorderedSolve {
             t: nalgebra::DVector::zeros(k),
             s: nalgebra::DVector::zeros(k),
         };
-        if s == 0 && k_new > 0 {
-            // No E: S = C − B Z_B, Z_B = A_old⁻¹ Bᵀ (Z's first k_new columns).
-            let mut schur = nalgebra::DMatrix::<f64>::zeros(k_new, k_new);
-            for (i, &d) in solver.diagonal.iter().enumerate() {
-                schur[(i, i)] = d;
-            }
-            for &(r, c, d) in &c_minus_d {
-                schur[(r, c)] += d;
-                if r != c {
-                    schur[(c, r)] += d;
-                }
-            }
-            for (i, col) in solver.coupling.iter().enumerate() {
-                for j in 0..k_new {
-                    schur[(i, j)] -= col.iter().map(|&(r, v)| v * solver.z[(r, j)]).sum::<f64>();
-                }
-            }
-            // Symmetric up to round-off: take its mean.
-            let schur = (&schur + schur.transpose()) * 0.5;
-            solver.schur = Some(schur.cholesky()?);
-            return Some(solver);
-        }
         if k > 0 {
             let mut g = nalgebra::DMatrix::<f64>::zeros(k, k);
             let mut t = nalgebra::DVector::zeros(k);
@@ -702,6 +709,78 @@ impl BorderedSolve {
             solver.lu = Some(lu);
         }
         Some(solver)
+    }
+
+    /// The Schur-complement border (no changes among old equations):
+    /// Z_B = A_old⁻¹ Bᵀ (n_old × k_new), its leading columns taken from
+    /// `previous` where its new equations are the same with the same
+    /// coupling (its buffer kept, the rest appended and solved in place),
+    /// and the Cholesky factor of S = C − B Z_B; `None` where S is not
+    /// positive definite.
+    fn schur(
+        previous: Option<BorderedSolve>,
+        chol: &mut Cholesky,
+        n_old: usize,
+        coupling: Vec<Vec<(usize, f64)>>,
+        diagonal: Vec<f64>,
+        c_minus_d: &[(usize, usize, f64)],
+    ) -> Option<BorderedSolve> {
+        let k_new = coupling.len();
+        let mut data: Vec<f64> = Vec::new();
+        let mut kept = 0;
+        if let Some(p) = previous.filter(|p| p.schur.is_some() && p.z.nrows() == n_old) {
+            kept = p
+                .coupling
+                .iter()
+                .zip(&coupling)
+                .take_while(|(a, b)| a == b)
+                .count();
+            data = p.z.data.into();
+            data.truncate(n_old * kept);
+        }
+        data.resize(n_old * k_new, 0.0);
+        for (col, c) in data[n_old * kept..]
+            .chunks_exact_mut(n_old)
+            .zip(&coupling[kept..])
+        {
+            for &(r, v) in c {
+                col[r] = v;
+            }
+        }
+        if n_old > 0 && k_new > kept {
+            chol.solve_columns_in_place(&mut data[n_old * kept..], k_new - kept);
+        }
+        let z = nalgebra::DMatrix::from_vec(n_old, k_new, data);
+        let mut schur = nalgebra::DMatrix::<f64>::zeros(k_new, k_new);
+        for (i, &d) in diagonal.iter().enumerate() {
+            schur[(i, i)] = d;
+        }
+        for &(r, c, d) in c_minus_d {
+            schur[(r, c)] += d;
+            if r != c {
+                schur[(c, r)] += d;
+            }
+        }
+        for (i, col) in coupling.iter().enumerate() {
+            for j in 0..k_new {
+                schur[(i, j)] -= col.iter().map(|&(r, v)| v * z[(r, j)]).sum::<f64>();
+            }
+        }
+        // Symmetric up to round-off: take its mean.
+        let schur = (&schur + schur.transpose()) * 0.5;
+        Some(BorderedSolve {
+            solved: k_new - kept,
+            n_old,
+            changed: Vec::new(),
+            coupling,
+            diagonal,
+            z,
+            w: nalgebra::DMatrix::zeros(0, 0),
+            lu: None,
+            schur: Some(schur.cholesky()?),
+            t: nalgebra::DVector::zeros(k_new),
+            s: nalgebra::DVector::zeros(k_new),
+        })
     }
 
     /// t = Uᵀ x.
