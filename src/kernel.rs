@@ -223,8 +223,7 @@ impl DenseKernel<'_> {
         let n = u.len();
         let mut energy = 0.0;
         for (i, hi) in h.iter_mut().enumerate().take(n) {
-            let row = &self.stiffness[i * n..(i + 1) * n];
-            *hi = row.iter().zip(u).map(|(k, v)| k * v).sum();
+            *hi = dot(&self.stiffness[i * n..(i + 1) * n], u);
             energy += 0.5 * u[i] * *hi;
         }
         energy
@@ -361,4 +360,24 @@ impl DenseKernel<'_> {
             }
         }
     }
+}
+
+/// a · b with four running sums, so the compiler can keep them in one SIMD
+/// register (a single running sum is a chain of dependent additions: a
+/// dense tip group's K u, (3m)² terms, took 56 % of a linear 1k-Tet4 step).
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let (a4, b4) = (a.chunks_exact(4), b.chunks_exact(4));
+    let tail: f64 = a4
+        .remainder()
+        .iter()
+        .zip(b4.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    let mut s = [0.0; 4];
+    for (x, y) in a4.zip(b4) {
+        for k in 0..4 {
+            s[k] += x[k] * y[k];
+        }
+    }
+    (s[0] + s[1]) + (s[2] + s[3]) + tail
 }

@@ -177,6 +177,17 @@ impl Plan {
                 ),
             }
         }
+        if dynamic.is_some() {
+            add(
+                "element loop for the internal forces every step",
+                corot,
+                if corot {
+                    "corotational: the forces rotate with the elements"
+                } else {
+                    "linear: f = K d from the stiffness assembled once (one sparse product a step)"
+                },
+            );
+        }
         add(
             "Newton load steps",
             corot && dynamic.is_none(),
