@@ -1277,6 +1277,46 @@ mod tests {
         assert_eq!(verdict(0.03, None, 0.005), Verdict::NoFem);
     }
 
+    /// The committed static-solve comparison (`refs/bench_static.py`): Tet4
+    /// and Tet10 on 1 and 2 cores from ~10k to ~400k DOFs, each speed-up the
+    /// faster FEniCSx run over ours, and the report shows every row.
+    #[test]
+    fn the_static_comparison_covers_10k_to_400k_dofs_on_1_and_2_cores() {
+        let reports = Path::new(env!("CARGO_MANIFEST_DIR")).join("reports");
+        let rows: Vec<StaticRow> =
+            crate::io::csv::read_rows(&reports.join("data/static_vs_fenicsx.csv"), false).unwrap();
+        for element in ["tet4", "tet10"] {
+            for cores in [1, 2] {
+                let dofs: Vec<usize> = rows
+                    .iter()
+                    .filter(|r| r.element == element && r.cores == cores)
+                    .map(|r| r.dofs_fenicsx)
+                    .collect();
+                let (lo, hi) = (dofs.iter().min().unwrap(), dofs.iter().max().unwrap());
+                assert!(
+                    *lo <= 16_000 && *hi >= 330_000,
+                    "{element} {cores}: {dofs:?}"
+                );
+            }
+        }
+        for r in &rows {
+            let best = r
+                .fenicsx_2ranks_s
+                .map_or(r.fenicsx_1rank_s, |t| t.min(r.fenicsx_1rank_s));
+            assert!(
+                (best / r.ours_s - r.speedup).abs() < 2e-3 * r.speedup,
+                "{r:?}"
+            );
+            assert!(r.ours_peak_mb > 0.0 && r.fenicsx_1rank_peak_mb > 0.0 && r.h_mm > 0.0);
+            assert!(r.dofs_ours_free <= r.dofs_fenicsx);
+        }
+        let section = static_section(&reports).unwrap().unwrap();
+        assert_eq!(
+            section.lines().filter(|l| l.starts_with("| tet")).count(),
+            rows.len()
+        );
+    }
+
     /// The pictures of every case exist, are PNGs of some size and the report shows them.
     #[test]
     fn pictures_exist_and_the_report_shows_them() {
