@@ -15,8 +15,9 @@ pub struct StaticOptions {
     pub max_iterations: usize,
     /// Corotational Newton on the exact tangent (the rotation's derivative
     /// included: quadratic convergence, and the geometric stiffness a slender
-    /// body in bending needs), falling back to R K Rᵀ where that tangent is
-    /// not positive definite; false: R K Rᵀ throughout (the seed's).
+    /// body in bending needs); where that tangent is not positive definite
+    /// (past a buckling load) the smallest shift μ diag|K| that factorises,
+    /// and R K Rᵀ only where none does; false: R K Rᵀ throughout (the seed's).
     pub exact_tangent: bool,
     /// Threads of the element loops (forces, tangents); the factorisation's
     /// are the `Cholesky`'s own.
