@@ -22,6 +22,9 @@ struct Cli {
 enum Command {
     /// Solve a scene at one refinement level; writes DIR/result.vtu (+ result.pvd series for
     /// dynamic runs) and DIR/probes.csv (x,y,z,ux,uy,uz) when the case lists probes.
+    #[command(
+        after_help = "Environment: XFEM_THREADS=N runs the numeric factorisation (from 40M entries of L) and the element loops on N threads (default 1)."
+    )]
     Run {
         /// The case file (TOML).
         case: PathBuf,
