@@ -967,6 +967,17 @@ impl<'m> Newmark<'m> {
         }
     }
 
+    /// dλ/dt of the ramp at time t: 1/ramp inside it, 0 after it (and at
+    /// its end, where the prescribed motion stops).
+    fn ramp_rate(&self, t: f64) -> f64 {
+        let ramp = self.opts.ramp;
+        if ramp > 0.0 && t < ramp * (1.0 - 1e-12) {
+            1.0 / ramp
+        } else {
+            0.0
+        }
+    }
+
     /// a(d), v(d) of the Newmark scheme into `a_new`, `v_new`.
     fn kinematics(&mut self, d: &[f64]) {
         let o = self.opts;
@@ -978,6 +989,16 @@ impl<'m> Newmark<'m> {
         for i in 0..d.len() {
             self.a_new[i] = c0 * (d[i] - self.d_old[i]) - c1 * s.v[i] - c2 * s.a[i];
             self.v_new[i] = s.v[i] + dt * ((1.0 - o.gamma) * s.a[i] + o.gamma * self.a_new[i]);
+        }
+        // Prescribed DOFs move as prescribed: d = λ(t) p̄, v = λ'(t) p̄, a = 0
+        // (λ is linear in the ramp and constant after it). Newmark's own
+        // v and a of a DOF whose motion has a kink ring for ever (the
+        // trapezoidal rule flips v each step once d stops), and the
+        // stiffness damping β_R K v would feed that ringing into the body.
+        let rate = self.ramp_rate(s.time + dt);
+        for p in &self.model.prescribed {
+            self.v_new[p.dof] = rate * p.value;
+            self.a_new[p.dof] = 0.0;
         }
     }
 
