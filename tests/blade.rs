@@ -1176,11 +1176,14 @@ fn a_border_grown_on_the_same_factor_reuses_its_columns_and_solves_alike() {
             vector_difference(&y, &x_grown),
         );
         println!(
-            "event {events}: border {} ({} columns, {} solved), vs refactorised: fresh {d_fresh:.1e}, grown {d_grown:.1e}",
+            "event {events}: border {} ({} columns, {} solved, in halves {}), vs refactorised: fresh {d_fresh:.1e}, grown {d_grown:.1e}",
             grown.border(),
             grown.event_solves(),
-            grown.solved_columns()
+            grown.solved_columns(),
+            grown.in_halves()
         );
+        // faer factorises this one supernodally: Y = L⁻¹ P Bᵀ, not Z_B.
+        assert!(grown.in_halves() && fresh.in_halves());
         assert!(
             d_fresh <= 1e-11 && d_grown <= 1e-11,
             "{d_fresh:e} {d_grown:e}"
