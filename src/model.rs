@@ -2185,11 +2185,16 @@ impl Model {
             col_ptr,
             row_idx,
         };
-        let mut scatter = vec![NONE; flat.scatter_len];
+        // Scatter maps in element order: a kept element's mapped through
+        // `position` (written once, not filled first), a changed one's found.
+        let mut scatter: Vec<u32> = Vec::with_capacity(flat.scatter_len);
         let mut dofs = Vec::new();
         let mut next_changed = changed.iter().map(|(e, _)| *e).peekable();
         for (e, el) in flat.elements.iter().enumerate() {
+            debug_assert_eq!(scatter.len(), el.scatter);
+            let n = 9 * el.shapes.len() * el.shapes.len();
             if next_changed.next_if_eq(&e).is_some() {
+                scatter.resize(el.scatter + n, NONE);
                 element_scatter(
                     el,
                     &flat.shape_ids[el.shapes.clone()],
@@ -2200,17 +2205,11 @@ impl Model {
                 );
             } else {
                 let old_el = &self.elements[e];
-                let n = 9 * el.shapes.len() * el.shapes.len();
-                for (s, &p) in scatter[el.scatter..el.scatter + n]
-                    .iter_mut()
-                    .zip(&self.scatter[old_el.scatter..old_el.scatter + n])
-                {
-                    *s = if p == NONE {
-                        NONE
-                    } else {
-                        position[p as usize]
-                    };
-                }
+                scatter.extend(
+                    self.scatter[old_el.scatter..old_el.scatter + n]
+                        .iter()
+                        .map(|&p| position.get(p as usize).copied().unwrap_or(NONE)),
+                );
             }
         }
 
