@@ -605,18 +605,8 @@ impl LinearForces {
         let mut k = vec![0.0; model.pattern.nnz()];
         let mut f = vec![0.0; n];
         let mut rot = Rotations::identity(model);
-        evaluate(
-            model,
-            &vec![0.0; n],
-            &mut rot,
-            ws,
-            Request {
-                forces: Some(&mut f),
-                tangent: Some(&mut k),
-                update_rotations: false,
-                exact_tangent: false,
-            },
-        );
+        // One pass at d = p̄: the tangent K (the same at any d) and the forces
+        // K p̄, whose free rows are K_fp p̄ (d_f = 0), with the energy ½ p̄·K_pp p̄.
         let mut pbar = vec![0.0; n];
         for p in &model.prescribed {
             pbar[p.dof] = p.value;
@@ -628,7 +618,7 @@ impl LinearForces {
             ws,
             Request {
                 forces: Some(&mut f),
-                tangent: None,
+                tangent: Some(&mut k),
                 update_rotations: false,
                 exact_tangent: false,
             },
@@ -1294,19 +1284,28 @@ impl<'m> Newmark<'m> {
         } else {
             0.0
         };
-        evaluate_damped(
-            self.model,
-            d,
-            &mut self.state.rotations,
-            &mut self.ws,
-            Request {
-                forces: None,
-                tangent: Some(&mut self.keff),
-                update_rotations: false,
-                exact_tangent: exact,
-            },
-            damping_in_pass,
-        );
+        if let Some(lf) = self.linear.as_ref() {
+            // Linear: (1 + β_R γ/(βΔt)) K from the stiffness the forces hold,
+            // not another pass over the elements.
+            let scale = 1.0 + damping_in_pass;
+            for (k, &kk) in self.keff.iter_mut().zip(&lf.k) {
+                *k = scale * kk;
+            }
+        } else {
+            evaluate_damped(
+                self.model,
+                d,
+                &mut self.state.rotations,
+                &mut self.ws,
+                Request {
+                    forces: None,
+                    tangent: Some(&mut self.keff),
+                    update_rotations: false,
+                    exact_tangent: exact,
+                },
+                damping_in_pass,
+            );
+        }
         self.complete_tangent();
     }
 
@@ -1445,6 +1444,40 @@ mod tests {
             (e_sparse - e_loop).abs() <= 1e-12 * e_loop.abs(),
             "{e_sparse} vs {e_loop}"
         );
+        // The step's Newton matrix, (1 + β_R γ/(βΔt)) K from those stiffness
+        // values plus the mass terms, equals the element pass's (Rayleigh
+        // mass and stiffness damping, lumped mass).
+        let opts = DynamicOptions {
+            rayleigh_mass: 0.3,
+            rayleigh_stiffness: 0.02,
+            ..DynamicOptions::default()
+        };
+        let mut nm = Newmark::new(&model, Cholesky::new(&model.pattern).unwrap(), opts).unwrap();
+        let (_, keff) = nm.newton_system(&d);
+        let c_v = opts.gamma / (opts.beta * opts.dt);
+        let mut by_pass = vec![0.0; model.pattern.nnz()];
+        evaluate_damped(
+            &model,
+            &d,
+            &mut Rotations::identity(&model),
+            &mut ws,
+            Request {
+                forces: None,
+                tangent: Some(&mut by_pass),
+                update_rotations: false,
+                exact_tangent: false,
+            },
+            opts.rayleigh_stiffness * c_v,
+        );
+        nm.mass.add_to(
+            &model,
+            1.0 / (opts.beta * opts.dt * opts.dt) + opts.rayleigh_mass * c_v,
+            &mut by_pass,
+        );
+        let scale = by_pass.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for (p, (a, b)) in keff.iter().zip(&by_pass).enumerate() {
+            assert!((a - b).abs() <= 1e-12 * scale, "entry {p}: {a} vs {b}");
+        }
     }
 
     /// The report of a step from the block rigidly rotated by 60° (with a
