@@ -224,6 +224,44 @@ pub fn evaluate_damped(
     ws.chunks.iter().map(|c| c.energy).sum()
 }
 
+/// Adds the forces (all DOFs) and the stiffness (lower CSC values on the
+/// model's pattern) of `elements` alone at `d` to `forces` and `tangent`,
+/// unrotated (a linear model's); returns their strain energy. What a cut
+/// event changes of a linear model's K ([`crate::dynamics::LinearForces::updated`]).
+pub fn add_linear_elements(
+    model: &Model,
+    d: &[f64],
+    elements: &[usize],
+    ws: &mut Workspace,
+    forces: &mut [f64],
+    tangent: &mut [f64],
+) -> f64 {
+    let pass = Pass {
+        model,
+        d,
+        update: false,
+        exact: false,
+        damping: 0.0,
+    };
+    let mut rot = Vec::new();
+    let mut energy = 0.0;
+    for &e in elements {
+        let groups = model.elements[e].groups.clone();
+        rot.clear();
+        rot.resize(groups.len(), Matrix3::identity());
+        energy += pass.accumulate(
+            e..e + 1,
+            &mut rot,
+            groups.start,
+            &mut ws.disp,
+            &mut ws.scratch,
+            Some(&mut *forces),
+            Some(&mut *tangent),
+        );
+    }
+    energy
+}
+
 /// out = Σ parts.
 fn sum_into<'a>(out: &mut [f64], mut parts: impl Iterator<Item = &'a [f64]>) {
     if let Some(first) = parts.next() {
@@ -291,13 +329,28 @@ impl Pass<'_> {
         mut forces: Option<&mut [f64]>,
         mut tangent: Option<&mut [f64]>,
     ) -> f64 {
-        let (model, damping) = (self.model, self.damping);
         if let Some(f) = forces.as_deref_mut() {
             f.fill(0.0);
         }
         if let Some(k) = tangent.as_deref_mut() {
             k.fill(0.0);
         }
+        self.accumulate(elements, rot, g0, disp, scratch, forces, tangent)
+    }
+
+    /// [`Pass::run`] adding to `forces` and `tangent` instead of overwriting them.
+    #[allow(clippy::too_many_arguments)]
+    fn accumulate(
+        &self,
+        elements: Range<usize>,
+        rot: &mut [Matrix3<f64>],
+        g0: usize,
+        disp: &mut [Vector3<f64>],
+        scratch: &mut Scratch,
+        mut forces: Option<&mut [f64]>,
+        mut tangent: Option<&mut [f64]>,
+    ) -> f64 {
+        let (model, damping) = (self.model, self.damping);
         let lame = model.lame;
         let corotational = model.formulation == Formulation::Corotational;
         let update = self.update && corotational;

@@ -25,7 +25,7 @@
 use crate::assembly::Rotations;
 use crate::cut::{setup_cut, CutError, CutInput, CutSetup, CutSurface, FrontMode, PlanarPatch};
 use crate::dynamics::{
-    DynamicError, DynamicOptions, Energies, EventSolve, LinearFactor, Newmark, State,
+    DynamicError, DynamicOptions, Energies, EventSolve, LinearFactor, LinearForces, Newmark, State,
 };
 use crate::mesh::TetMesh;
 use crate::model::{Model, ModelError};
@@ -1188,9 +1188,14 @@ pub fn run_dynamic(
     let linear = model.formulation == crate::model::Formulation::Linear;
     let bordered = linear && matches!(opts.event_solve, EventSolve::Bordered { .. });
     let mut carried: Option<(State, Event)> = None;
+    // A linear model's stiffness carried over the last event.
+    let mut forces: Option<LinearForces> = None;
     let mut step = 0;
     loop {
         let mut nm = Newmark::on_factor(&model, factor, opts)?;
+        if let Some(f) = forces.take() {
+            nm.set_linear_forces(f);
+        }
         let after_event = carried.is_some();
         // A reused factorisation keeps counting: count this model's part only.
         let counted = nm.factorisations();
@@ -1258,6 +1263,7 @@ pub fn run_dynamic(
         let before = nm.energies();
         sweep.factorisations += nm.factorisations() - counted;
         let state = nm.state.clone();
+        let old_forces = nm.take_linear_forces();
         let old = nm.into_factor();
         let t_model = Instant::now();
         // Only the elements the grown cut changed are integrated again
@@ -1268,7 +1274,9 @@ pub fn run_dynamic(
             let n = m.mesh.n_elements();
             (m, n, true)
         } else {
-            let (m, stats) = model.update_cut(setup)?;
+            let (m, stats, update) = model.update_cut_mapped(setup)?;
+            // The stiffness moved over and mended where the elements changed.
+            forces = old_forces.map(|f| f.updated(&model, &m, &update));
             (m, stats.changed_elements, stats.dropped_equations > 0)
         };
         let model_seconds = t_model.elapsed().as_secs_f64();

@@ -17,10 +17,11 @@
 //! step a step allocates nothing (`tests/alloc.rs` counts).
 
 use crate::assembly::{
-    evaluate, evaluate_damped, gather_free, tangent_product, Request, Rotations, Workspace,
+    add_linear_elements, evaluate, evaluate_damped, gather_free, tangent_product, Request,
+    Rotations, Workspace,
 };
 use crate::corotation::polar_rotation;
-use crate::model::{Formulation, Model, NONE};
+use crate::model::{CutUpdate, Formulation, Model, NONE};
 use crate::solve::{BorderedSolve, Cholesky, Pattern, Pcg, SolveError, BORDER_TOLERANCE};
 use crate::statics::norm;
 use nalgebra::{Matrix3, Vector3};
@@ -585,8 +586,8 @@ pub struct Newmark<'m> {
 /// displacements are d_p = λ p̄ (every step sets them so). One sparse
 /// product instead of a pass over the elements, whose dense tip groups
 /// hold (3m)² values each (six times nnz(K) at 1k Tet4 with the front
-/// tip-enriched).
-struct LinearForces {
+/// tip-enriched). Carried across a cut event by [`LinearForces::updated`].
+pub struct LinearForces {
     /// K_ff on the model's pattern (lower triangle).
     k: Vec<f64>,
     /// K_fp p̄ on the free equations.
@@ -636,6 +637,92 @@ impl LinearForces {
                 .map(|p| (p.dof, p.value)),
             d_free: vec![0.0; model.n_free],
             kd: vec![0.0; model.n_free],
+        }
+    }
+
+    /// These forces for `new`, the model [`Model::update_cut_mapped`] made
+    /// from `old` (whose forces these are) with `update`: the old stiffness
+    /// moved to the new positions, the changed elements' old blocks taken
+    /// out and their new ones added — a pass over the changed elements
+    /// instead of all. Equal to [`LinearForces::new`] on `new` to round-off.
+    pub fn updated(self, old: &Model, new: &Model, update: &CutUpdate) -> LinearForces {
+        debug_assert_eq!(self.k.len(), old.pattern.nnz());
+        let pbar = |m: &Model| {
+            let mut p = vec![0.0; m.n_dofs()];
+            for q in &m.prescribed {
+                p[q.dof] = q.value;
+            }
+            p
+        };
+        let mut k = vec![0.0; new.pattern.nnz()];
+        for (&v, &q) in self.k.iter().zip(&update.position) {
+            if q != NONE {
+                k[q as usize] += v;
+            }
+        }
+        let mut prescribed = vec![0.0; new.n_free];
+        for (&v, &q) in self.prescribed.iter().zip(&update.equation) {
+            if q != NONE {
+                prescribed[q as usize] += v;
+            }
+        }
+        // The changed elements' old blocks out: assembled on the old pattern
+        // (zeroed pages, touched only there), taken out where their scatter maps point.
+        let (mut f_old, mut k_old) = (vec![0.0; old.n_dofs()], vec![0.0; old.pattern.nnz()]);
+        let e_old = add_linear_elements(
+            old,
+            &pbar(old),
+            &update.changed,
+            &mut Workspace::new(old),
+            &mut f_old,
+            &mut k_old,
+        );
+        for &e in &update.changed {
+            let el = &old.elements[e];
+            let m = el.shapes.len();
+            for &p in &old.scatter[el.scatter..el.scatter + 9 * m * m] {
+                if p == NONE {
+                    continue;
+                }
+                let (v, q) = (
+                    std::mem::take(&mut k_old[p as usize]),
+                    update.position[p as usize],
+                );
+                if v != 0.0 && q != NONE {
+                    k[q as usize] -= v;
+                }
+            }
+        }
+        for (dof, &eq) in old.equation.iter().enumerate() {
+            if eq != NONE {
+                let q = update.equation[eq as usize];
+                if q != NONE {
+                    prescribed[q as usize] -= f_old[dof];
+                }
+            }
+        }
+        // Their new blocks in, straight onto the new pattern.
+        let mut f_new = vec![0.0; new.n_dofs()];
+        let e_new = add_linear_elements(
+            new,
+            &pbar(new),
+            &update.changed,
+            &mut Workspace::new(new),
+            &mut f_new,
+            &mut k,
+        );
+        for (dof, &eq) in new.equation.iter().enumerate() {
+            if eq != NONE {
+                prescribed[eq as usize] += f_new[dof];
+            }
+        }
+        LinearForces {
+            k,
+            prescribed,
+            prescribed_energy: self.prescribed_energy - e_old + e_new,
+            scale_dof: self.scale_dof,
+            d_free: vec![0.0; new.n_free],
+            kd: vec![0.0; new.n_free],
         }
     }
 
@@ -839,6 +926,21 @@ impl<'m> Newmark<'m> {
     /// Times the steps left a border for their own factor ([`refresh_after`]).
     pub fn refreshes(&self) -> usize {
         self.refreshed
+    }
+
+    /// The linear forces this integrator assembled (its model's), if any:
+    /// to carry across a cut event ([`LinearForces::updated`]).
+    pub fn take_linear_forces(&mut self) -> Option<LinearForces> {
+        self.linear.take()
+    }
+
+    /// Gives the integrator its model's linear forces (from
+    /// [`LinearForces::updated`] at a cut event) instead of assembling them
+    /// at its first step.
+    pub fn set_linear_forces(&mut self, forces: LinearForces) {
+        debug_assert_eq!(forces.k.len(), self.model.pattern.nnz());
+        debug_assert_eq!(forces.prescribed.len(), self.model.n_free);
+        self.linear = Some(forces);
     }
 
     /// Ends the integrator, handing its factorisation to the next one across
@@ -1477,6 +1579,96 @@ mod tests {
         let scale = by_pass.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         for (p, (a, b)) in keff.iter().zip(&by_pass).enumerate() {
             assert!((a - b).abs() <= 1e-12 * scale, "entry {p}: {a} vs {b}");
+        }
+    }
+
+    /// Carried over every cut event of a blade sweep, the linear forces
+    /// (stiffness, K_fp p̄ and ½ p̄·K_pp p̄) equal those assembled afresh on
+    /// the new model: Tet4 and Tet10, the front extended (equations only
+    /// appended) and tip-enriched (tip DOFs dropped, equations renumbered),
+    /// the top face pulled and nodes of the cut elements moved (prescribed
+    /// values not zero where the elements change).
+    #[test]
+    fn linear_forces_carried_over_cut_events_equal_a_fresh_assembly() {
+        use crate::cut::FrontMode;
+        use crate::study::fixtures::{beam_mesh, seed_blade, BEAM_MATERIAL};
+        for (tet10, front) in [
+            (false, FrontMode::Extend),
+            (false, FrontMode::Tip),
+            (true, FrontMode::Tip),
+        ] {
+            let mesh = beam_mesh([6, 3, 9], tet10);
+            let fixed: Vec<_> = mesh
+                .nodes
+                .iter()
+                .enumerate()
+                .filter_map(|(i, p)| {
+                    if p.z.abs() < 1e-12 {
+                        Some((i, [Some(0.0); 3]))
+                    } else if (p.z - 0.2).abs() < 1e-12 {
+                        Some((i, [Some(0.004), None, Some(-0.002)]))
+                    } else if p.x.abs() < 1e-12 && (p.z - 0.1).abs() < 0.03 {
+                        // In the elements the blade changes: their K_fp p̄ changes too.
+                        Some((i, [None, Some(0.001), None]))
+                    } else {
+                        None
+                    }
+                })
+                .collect();
+            let mut cuts = seed_blade(0.0, 1.0);
+            cuts.front = front;
+            let build = |t: f64| {
+                Model::build(ModelInput {
+                    mesh: mesh.clone(),
+                    material: BEAM_MATERIAL,
+                    formulation: Formulation::Linear,
+                    cut: cuts.setup_at(&mesh, t).unwrap(),
+                    fixed: fixed.clone(),
+                    gravity: None,
+                    body_force: None,
+                    tractions: &[],
+                    need_mass: true,
+                })
+                .unwrap()
+            };
+            let mut model = build(0.1);
+            let mut forces = LinearForces::new(&model, &mut Workspace::new(&model));
+            let (mut events, mut dropped) = (0, 0);
+            for k in 3..=20 {
+                let setup = cuts.setup_at(&mesh, 0.05 * k as f64).unwrap();
+                if crate::blade::same_setup(model.cut.as_ref(), setup.as_ref()) {
+                    continue;
+                }
+                let (next, stats, update) = model.update_cut_mapped(setup).unwrap();
+                forces = forces.updated(&model, &next, &update);
+                let fresh = LinearForces::new(&next, &mut Workspace::new(&next));
+                let scale = fresh.k.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                for (p, (a, b)) in forces.k.iter().zip(&fresh.k).enumerate() {
+                    assert!(
+                        (a - b).abs() <= 1e-12 * scale,
+                        "{tet10} {front:?} entry {p}: {a} vs {b}"
+                    );
+                }
+                let scale = fresh.prescribed.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                assert!(scale > 0.0);
+                for (a, b) in forces.prescribed.iter().zip(&fresh.prescribed) {
+                    assert!(
+                        (a - b).abs() <= 1e-12 * scale,
+                        "{tet10} {front:?}: {a} vs {b}"
+                    );
+                }
+                assert!(
+                    (forces.prescribed_energy - fresh.prescribed_energy).abs()
+                        <= 1e-12 * fresh.prescribed_energy.abs()
+                );
+                events += 1;
+                dropped += stats.dropped_equations;
+                model = next;
+            }
+            assert!(events >= 3, "{tet10} {front:?}: {events} events");
+            if front == FrontMode::Tip {
+                assert!(dropped > 0, "{tet10}: no tip DOF dropped");
+            }
         }
     }
 

@@ -1831,6 +1831,17 @@ impl Model {
 // ---------------------------------------------------------------------------
 // A cut event: the model of a grown cut from the model of the old one.
 
+/// How [`Model::update_cut_mapped`] maps the old model onto the new one.
+#[derive(Debug, Clone)]
+pub struct CutUpdate {
+    /// The elements integrated again (ascending); the others' blocks are the old ones.
+    pub changed: Vec<usize>,
+    /// Old pattern position → new one ([`NONE`]: the entry is gone).
+    pub position: Vec<u32>,
+    /// Old free equation → new one ([`NONE`]: dropped).
+    pub equation: Vec<u32>,
+}
+
 /// What [`Model::update_cut`] kept and recomputed.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct UpdateStats {
@@ -1986,6 +1997,17 @@ impl Model {
     /// A model built with a body force beyond gravity cannot be updated (it
     /// does not keep the function): [`ModelError::BodyForceUpdate`].
     pub fn update_cut(&self, cut: Option<CutSetup>) -> Result<(Model, UpdateStats), ModelError> {
+        self.update_cut_mapped(cut)
+            .map(|(model, stats, _)| (model, stats))
+    }
+
+    /// [`Model::update_cut`] with the map from the old model to the new
+    /// one: what a cut event's caller needs to carry matrices over the
+    /// event instead of assembling them again.
+    pub fn update_cut_mapped(
+        &self,
+        cut: Option<CutSetup>,
+    ) -> Result<(Model, UpdateStats, CutUpdate), ModelError> {
         if self.body_force {
             return Err(ModelError::BodyForceUpdate);
         }
@@ -2272,6 +2294,11 @@ impl Model {
             consistent_mass,
             mid_edge,
         };
-        Ok((model, stats))
+        let update = CutUpdate {
+            changed: changed.iter().map(|(e, _)| *e).collect(),
+            position,
+            equation: eq_map,
+        };
+        Ok((model, stats, update))
     }
 }
