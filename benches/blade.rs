@@ -24,7 +24,7 @@ use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criteri
 use std::hint::black_box;
 use xfem_cut::blade::{map_state, same_setup, stiffness_plus_mass, CutSet};
 use xfem_cut::cut::CutSetup;
-use xfem_cut::dynamics::{DynamicOptions, LinearFactor, Newmark, State};
+use xfem_cut::dynamics::{DynamicOptions, LinearFactor, LinearForces, Newmark, State};
 use xfem_cut::mesh::TetMesh;
 use xfem_cut::model::{Formulation, Model};
 use xfem_cut::solve::{BorderedSolve, Cholesky};
@@ -205,23 +205,28 @@ fn benches(c: &mut Criterion) {
                 })
             });
             if formulation == Formulation::Linear {
-                // The previous integrator's factor (K_eff of model_a), made outside the timing.
-                let factor = || -> LinearFactor {
+                // The previous integrator's factor and stiffness, made outside the timing.
+                let factor = || -> (LinearFactor, Option<LinearForces>) {
                     let mut nm =
                         Newmark::new(&model_a, Cholesky::new(&model_a.pattern).unwrap(), opts)
                             .unwrap();
                     nm.state = state_a.clone();
                     nm.step().unwrap();
-                    nm.into_factor()
+                    let forces = nm.take_linear_forces();
+                    (nm.into_factor(), forces)
                 };
+                // As the blade driver does it: the stiffness carried over the event.
                 group.bench_function(BenchmarkId::new("event_update_bordered", &name), |b| {
                     b.iter_batched(
                         factor,
-                        |f| {
+                        |(f, forces)| {
                             let s = cuts.setup_at(&mesh, t_b).unwrap();
-                            let (model_b, _) = model_a.update_cut(s).unwrap();
+                            let (model_b, _, update) = model_a.update_cut_mapped(s).unwrap();
                             let mapped = map_state(&model_a, &model_b, &state_a);
                             let mut nb = Newmark::on_factor(&model_b, f, opts).unwrap();
+                            if let Some(forces) = forces {
+                                nb.set_linear_forces(forces.updated(&model_a, &model_b, &update));
+                            }
                             nb.state = mapped;
                             black_box(nb.step().unwrap());
                             assert!(nb.border().is_some());
