@@ -473,19 +473,17 @@ impl Cholesky {
     /// xp ← L⁻¹ xp (factor's order); allocates nothing. Panics without
     /// [`Cholesky::has_halves`].
     pub fn forward_in_place(&mut self, xp: &mut [f64]) {
-        assert!(self.factored, "solve before a successful factorisation");
-        let SymbolicCholeskyRaw::Supernodal(sym) = self.symbolic.raw() else {
-            panic!("supernodal factor");
-        };
-        let llt = SupernodalLltRef::<usize, f64>::new(sym, &self.l_values);
-        let n = xp.len();
-        let rhs = MatMut::from_column_major_slice_mut(xp, n, 1);
-        llt.l_solve_with_conj(Conj::No, rhs, self.par, MemStack::new(&mut self.solve_mem));
+        self.half_in_place(xp, false);
     }
 
     /// xp ← L⁻ᵀ xp (factor's order); allocates nothing. Panics without
     /// [`Cholesky::has_halves`].
     pub fn backward_in_place(&mut self, xp: &mut [f64]) {
+        self.half_in_place(xp, true);
+    }
+
+    /// xp ← L⁻¹ xp, or L⁻ᵀ xp when `transpose`, on the solve scratch.
+    fn half_in_place(&mut self, xp: &mut [f64], transpose: bool) {
         assert!(self.factored, "solve before a successful factorisation");
         let SymbolicCholeskyRaw::Supernodal(sym) = self.symbolic.raw() else {
             panic!("supernodal factor");
@@ -493,12 +491,12 @@ impl Cholesky {
         let llt = SupernodalLltRef::<usize, f64>::new(sym, &self.l_values);
         let n = xp.len();
         let rhs = MatMut::from_column_major_slice_mut(xp, n, 1);
-        llt.l_transpose_solve_with_conj(
-            Conj::No,
-            rhs,
-            self.par,
-            MemStack::new(&mut self.solve_mem),
-        );
+        let stack = MemStack::new(&mut self.solve_mem);
+        if transpose {
+            llt.l_transpose_solve_with_conj(Conj::No, rhs, self.par, stack);
+        } else {
+            llt.l_solve_with_conj(Conj::No, rhs, self.par, stack);
+        }
     }
 
     /// Y ← L⁻¹ Y for `ncols` columns (n × ncols, column-major, factor's
