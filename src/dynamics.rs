@@ -894,7 +894,7 @@ impl<'m> Newmark<'m> {
             return false;
         };
         let limit = border_limit(max_border, base.pattern.n, self.chol.factor_nnz());
-        base.solve = BorderedSolve::grown_from(
+        base.solve = BorderedSolve::grown_within(
             base.previous.take(),
             &mut self.chol,
             &base.pattern,
@@ -902,8 +902,8 @@ impl<'m> Newmark<'m> {
             &self.model.pattern,
             &self.keff,
             BORDER_TOLERANCE,
-        )
-        .filter(|b| b.border() <= limit);
+            limit,
+        );
         self.built_border = base.solve.as_ref().map(BorderedSolve::border);
         if let Some(b) = &base.solve {
             base.refresh_after = refresh_after(b.border(), base.pattern.n, self.chol.factor_nnz());

@@ -733,6 +733,34 @@ impl BorderedSolve {
         new_values: &[f64],
         tol: f64,
     ) -> Option<BorderedSolve> {
+        BorderedSolve::grown_within(
+            previous,
+            chol,
+            old,
+            old_values,
+            new,
+            new_values,
+            tol,
+            usize::MAX,
+        )
+    }
+
+    /// [`BorderedSolve::grown_from`] that gives up (`None`) before any
+    /// solve on the factor when the border would be larger than
+    /// `max_border` ([`BorderedSolve::border`]): an event that changed many
+    /// old equations (a moved tip front) is refactorised without paying
+    /// for the columns of a border it would not use.
+    #[allow(clippy::too_many_arguments)]
+    pub fn grown_within(
+        previous: Option<BorderedSolve>,
+        chol: &mut Cholesky,
+        old: &Pattern,
+        old_values: &[f64],
+        new: &Pattern,
+        new_values: &[f64],
+        tol: f64,
+        max_border: usize,
+    ) -> Option<BorderedSolve> {
         let (n_old, n) = (old.n, new.n);
         if n < n_old {
             return None;
@@ -799,7 +827,13 @@ impl BorderedSolve {
         let s = changed.len();
         let k = s + 2 * k_new;
         if s == 0 && k_new > 0 {
+            if k_new > max_border {
+                return None;
+            }
             return BorderedSolve::schur(previous, chol, n_old, coupling, diagonal, &c_minus_d);
+        }
+        if k > max_border {
+            return None;
         }
         // Z's columns of a Schur border in halves are Y's, not A₀⁻¹U's.
         let previous_ref = previous_ref.filter(|p| p.forward.is_none());
