@@ -68,6 +68,7 @@ fn main() {
             LinearSolver::Lagged {
                 every: 1,
                 refactor_after: lag_after,
+                max_rate: 1.0,
             },
         ),
         (
@@ -75,6 +76,7 @@ fn main() {
             LinearSolver::Lagged {
                 every: 5,
                 refactor_after: lag_after,
+                max_rate: 1.0,
             },
         ),
         (
@@ -82,6 +84,31 @@ fn main() {
             LinearSolver::Lagged {
                 every: 20,
                 refactor_after: lag_after,
+                max_rate: 1.0,
+            },
+        ),
+        (
+            "adaptive 0.1",
+            LinearSolver::Lagged {
+                every: usize::MAX,
+                refactor_after: lag_after,
+                max_rate: 0.1,
+            },
+        ),
+        (
+            "adaptive 0.3",
+            LinearSolver::Lagged {
+                every: usize::MAX,
+                refactor_after: lag_after,
+                max_rate: 0.3,
+            },
+        ),
+        (
+            "adaptive 0.5",
+            LinearSolver::Lagged {
+                every: usize::MAX,
+                refactor_after: lag_after,
+                max_rate: 0.5,
             },
         ),
     ];

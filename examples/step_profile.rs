@@ -190,6 +190,7 @@ fn modes(m: &Model, state: &xfem_cut::dynamics::State) {
     let lagged = |every| LinearSolver::Lagged {
         every,
         refactor_after: 8,
+        max_rate: 1.0,
     };
     for (name, linear_solver) in [
         ("refactorising Newton", LinearSolver::Direct),

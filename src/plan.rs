@@ -131,14 +131,27 @@ impl Plan {
                 Some(LinearSolver::Lagged {
                     every,
                     refactor_after,
+                    max_rate,
                 }),
-            ) => add(
-                &format!(
-                    "numeric factorisation every {every} steps, or after {refactor_after} Newton iterations on one factor"
-                ),
-                true,
-                "modified Newton on a lagged factorisation",
-            ),
+            ) => {
+                let mut when = Vec::new();
+                if every != usize::MAX {
+                    when.push(format!("every {every} steps"));
+                }
+                if max_rate < 1.0 {
+                    when.push(format!(
+                        "when an iteration on it leaves more than {max_rate} of the residual"
+                    ));
+                }
+                when.push(format!(
+                    "after {refactor_after} Newton iterations on one factor"
+                ));
+                add(
+                    &format!("numeric factorisation {}", when.join(", or ")),
+                    true,
+                    "modified Newton on a lagged factorisation of the exact tangent",
+                )
+            }
             (true, Some(LinearSolver::Direct)) => add(
                 "numeric factorisation every iteration",
                 true,

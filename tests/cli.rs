@@ -282,13 +282,18 @@ fn the_plan_shows_the_options_the_run_uses() {
         ),
         (
             dynamic("linear_solver = \"lagged\""),
-            "[run ] numeric factorisation every 5 steps, or after 8 Newton iterations on one factor",
+            "[run ] numeric factorisation when an iteration on it leaves more than 0.1 of the residual, or after 8 Newton iterations on one factor",
             "every iteration",
         ),
         (
             dynamic(""),
-            "[run ] numeric factorisation every iteration",
+            "lagged factorisation of the exact tangent",
             "PCG",
+        ),
+        (
+            dynamic("linear_solver = \"direct\""),
+            "[run ] numeric factorisation every iteration",
+            "lagged",
         ),
         (
             GOOD.to_string(),

@@ -10,7 +10,7 @@ use super::{
     Analysis, BodyGeometry, CutGeometry, CutSpec, Fix, FrontMode, Scene, SceneError, TractionSpec,
 };
 use crate::cut::{PlanarPatch, DEFAULT_SNAP};
-use crate::dynamics::{DynamicOptions, LinearSolver, MassKind};
+use crate::dynamics::{DynamicOptions, LinearSolver, MassKind, DEFAULT_LAGGED};
 use crate::material::Material;
 use crate::mesh::ElementKind;
 use crate::model::Formulation;
@@ -830,7 +830,12 @@ fn validate_analysis(c: &Checker, a: AnalysisFile) -> Result<(Formulation, Analy
             if let Some(m) = max_iterations {
                 o.max_iterations = m;
             }
-            o.linear_solver = match a.linear_solver.unwrap_or(SolverFile::Direct) {
+            // Corotational scenes default to modified Newton on a lagged
+            // factor of the exact tangent (examples/fast_step.rs: bend_dynamic
+            // L0 0.52 against 2.2 ms a step, within 2e-9 of the refactorising
+            // step over 1000 steps; the undamped gravity beam 3.3 against
+            // 5.1 ms); a linear scene factorises once whatever this says.
+            o.linear_solver = match a.linear_solver.unwrap_or(SolverFile::Lagged) {
                 SolverFile::Direct => LinearSolver::Direct,
                 SolverFile::Pcg => LinearSolver::Pcg {
                     tolerance: 1e-8,
@@ -842,12 +847,7 @@ fn validate_analysis(c: &Checker, a: AnalysisFile) -> Result<(Formulation, Analy
                     tolerance: 1e-10,
                     max_cg: 50,
                 },
-                // 1000 steps of bend_dynamic L1: 3× faster than refactorising,
-                // within 3.4e-9 of it (examples/fast_step.rs).
-                SolverFile::Lagged => LinearSolver::Lagged {
-                    every: 5,
-                    refactor_after: 8,
-                },
+                SolverFile::Lagged => DEFAULT_LAGGED,
             };
             let output_every = c
                 .count("analysis.output_every", a.output_every)?
