@@ -821,7 +821,17 @@ pub fn project_tip_change(
         old_grads.resize(old_ids.len(), Vector3::zeros());
         let h = new.mesh.element_size(e);
         let beta = GRADIENT_WEIGHT * h * h;
-        for &(x, w, side) in &points {
+        // The fitted functions' values and gradient components at the
+        // points (a column each), for the Grams as products A W Aᵀ.
+        let (nl, np) = (local.len(), points.len());
+        let mut a_val = nalgebra::DMatrix::<f64>::zeros(nl, np);
+        let mut a_grad = [
+            nalgebra::DMatrix::<f64>::zeros(nl, np),
+            nalgebra::DMatrix::<f64>::zeros(nl, np),
+            nalgebra::DMatrix::<f64>::zeros(nl, np),
+        ];
+        let mut weights = Vec::with_capacity(np);
+        for (q, &(x, w, side)) in points.iter().enumerate() {
             ev_new.eval(&x, side, &mut vals, &mut grads);
             ev_old.eval(&x, side, &mut old_vals, &mut old_grads);
             // Residual r and (for d) its gradient ∇r (row c = ∇r_c).
@@ -843,19 +853,36 @@ pub fn project_tip_change(
                     r[2] -= dof(&mapped.a, s) * vals[a];
                 }
             }
-            for &(a, sa) in &local {
+            weights.push(w);
+            for (i, &(a, sa)) in local.iter().enumerate() {
                 let (va, ga) = (w * vals[a], grads[a] * w);
                 let grad_term = gr * ga * beta;
                 for c in 0..3 {
                     rhs_h[(sa, c)] += va * r[0][c] + grad_term[c];
                     rhs_l[(sa, c)] += va * r[1][c];
                     rhs_l[(sa, 3 + c)] += va * r[2][c];
+                    a_grad[c][(i, q)] = grads[a][c];
                 }
-                for &(b, sb) in &local {
-                    let l2 = va * vals[b];
-                    gram_l[(sa, sb)] += l2;
-                    gram_h[(sa, sb)] += l2 + beta * ga.dot(&grads[b]);
-                }
+                a_val[(i, q)] = vals[a];
+            }
+        }
+        // Σ_q w_q φ_a φ_b and Σ_q w_q ∇φ_a·∇φ_b, one product each.
+        let weighted = |a: &nalgebra::DMatrix<f64>| {
+            let mut aw = a.clone();
+            for (mut col, &w) in aw.column_iter_mut().zip(&weights) {
+                col *= w;
+            }
+            aw
+        };
+        let l2 = weighted(&a_val) * a_val.transpose();
+        let mut h1 = nalgebra::DMatrix::<f64>::zeros(nl, nl);
+        for g in &a_grad {
+            h1.gemm(1.0, &weighted(g), &g.transpose(), 1.0);
+        }
+        for (i, &(_, sa)) in local.iter().enumerate() {
+            for (j, &(_, sb)) in local.iter().enumerate() {
+                gram_l[(sa, sb)] += l2[(i, j)];
+                gram_h[(sa, sb)] += l2[(i, j)] + beta * h1[(i, j)];
             }
         }
     }
