@@ -104,11 +104,11 @@ fn main() {
             },
         ),
         (
-            "adaptive 0.5",
+            "adaptive 0.03",
             LinearSolver::Lagged {
                 every: usize::MAX,
                 refactor_after: lag_after,
-                max_rate: 0.5,
+                max_rate: 0.03,
             },
         ),
     ];

@@ -43,7 +43,11 @@ pub fn polar_rotation(f: &Matrix3<f64>, guess: &Matrix3<f64>) -> Matrix3<f64> {
             x.column(2).cross(&x.column(0)),
             x.column(0).cross(&x.column(1)),
         ]);
-        let zeta = if scaled { inverse_cube_root(det_x) } else { 1.0 };
+        let zeta = if scaled {
+            inverse_cube_root(det_x)
+        } else {
+            1.0
+        };
         let next = (x * zeta + cofactor * (1.0 / (zeta * det_x))) * 0.5;
         let change = (next - x).norm_squared();
         x = next;
