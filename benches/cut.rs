@@ -7,9 +7,10 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use nalgebra::{Point3, Vector3};
 use std::hint::black_box;
+use std::time::{Duration, Instant};
 use xfem_cut::assembly::{equation_shapes, evaluate, Request, Rotations, Workspace};
 use xfem_cut::cut::{setup_cut, CutInput, CutSetup, PlanarPatch, DEFAULT_SNAP};
-use xfem_cut::dynamics::{DynamicOptions, LinearSolver, Newmark};
+use xfem_cut::dynamics::{DynamicOptions, LinearSolver, Newmark, DEFAULT_LAGGED};
 use xfem_cut::mesh::TetMesh;
 use xfem_cut::model::{Formulation, Model};
 use xfem_cut::solve::{Cholesky, Parallelism};
@@ -167,6 +168,9 @@ fn cut_step(c: &mut Criterion) {
 /// tip quadrature cells) against the whole precompute, and a Newmark step
 /// with the front tip-enriched (topological) against the same cut extended
 /// (issue 11's ≤ 10 % and ≤ 1.3× targets).
+/// Steps a `scene-step` sample averages over.
+const SCENE_STEPS: u32 = 30;
+
 fn tip_step(c: &mut Criterion) {
     let mut g = c.benchmark_group("tip");
     g.sample_size(10);
@@ -222,6 +226,42 @@ fn tip_step(c: &mut Criterion) {
                     b.iter(|| black_box(nm.step().unwrap()))
                 });
             }
+            // A corotational step as a scene runs it: Newton to 1e-8 with
+            // the default solver (the lagged factor), averaged over the
+            // first SCENE_STEPS steps of the swing from rest, a fresh
+            // integrator each sample.
+            let m = model(mesh.clone(), Some(cut.clone()), Formulation::Corotational);
+            let opts = DynamicOptions {
+                dt: 0.01,
+                linear_solver: DEFAULT_LAGGED,
+                ..DynamicOptions::default()
+            };
+            let blocks = equation_shapes(&m);
+            let name = format!(
+                "scene-step-corotational-{front}/{k}/{n}tets-{}tip",
+                cut.n_tip()
+            );
+            g.bench_function(BenchmarkId::new(name, label), |b| {
+                b.iter_custom(|iters| {
+                    let mut total = Duration::ZERO;
+                    for _ in 0..iters {
+                        let chol = Cholesky::fill_reducing(
+                            &m.pattern,
+                            Some(&blocks),
+                            Parallelism::threads(1),
+                        )
+                        .unwrap();
+                        let mut nm = Newmark::new(&m, chol, opts).unwrap();
+                        nm.initialise_acceleration().unwrap();
+                        let t = Instant::now();
+                        for _ in 0..SCENE_STEPS {
+                            black_box(nm.step().unwrap());
+                        }
+                        total += t.elapsed();
+                    }
+                    total / SCENE_STEPS
+                })
+            });
         }
     }
     g.finish();
