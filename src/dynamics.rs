@@ -74,6 +74,13 @@ pub const DEFAULT_LAGGED: LinearSolver = LinearSolver::Lagged {
     max_rate: 0.1,
 };
 
+/// The last iterations a step may take ([`DynamicOptions::max_iterations`])
+/// are Newton's, refactorised each, whatever the linear solver: a lagged
+/// factor never fails a step that Newton would finish, and
+/// `max_iterations = 1` stays the linearly implicit step on the current
+/// tangent.
+const NEWTON_TAIL: usize = 3;
+
 /// How a linear scene's first step after a cut event solves its grown K_eff
 /// (`blade::run_dynamic` hands the integrator the factor of the previous one).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -1163,6 +1170,7 @@ impl<'m> Newmark<'m> {
                         || (report.iterations == 0 && self.steps_since_factor >= every)
                         || on_this_factor >= refactor_after
                         || (on_this_factor > 0 && residual > max_rate * before_last)
+                        || o.max_iterations.saturating_sub(report.iterations) <= NEWTON_TAIL
                 }
                 _ => !linear || !self.factored,
             };

@@ -146,6 +146,12 @@ impl Plan {
                 when.push(format!(
                     "after {refactor_after} Newton iterations on one factor"
                 ));
+                if let Some(o) = dynamic {
+                    when.push(format!(
+                        "in each of the last 3 of the {} iterations a step may take",
+                        o.max_iterations
+                    ));
+                }
                 add(
                     &format!("numeric factorisation {}", when.join(", or ")),
                     true,

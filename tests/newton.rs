@@ -281,6 +281,44 @@ fn the_default_lagged_step_of_the_shipped_scenes_is_pinned() {
     }
 }
 
+/// The lagged default never fails a step Newton would finish: the last
+/// three iterations a step may take (`dynamics::NEWTON_TAIL`) refactorise
+/// each. With `max_iterations = 4` every step of `bend_dynamic`'s ramp (which
+/// takes the lagged factor 5 to 7 iterations) still converges; with
+/// `max_iterations = 1` the step is the linearly implicit one on the current
+/// tangent, as with `direct`.
+#[test]
+fn the_lagged_default_keeps_the_iteration_limit_of_newton() {
+    use xfem_cut::dynamics::{LinearSolver, DEFAULT_LAGGED};
+    let (model, options) = case("bend_dynamic.toml", ("", ""));
+    let start = |linear_solver, max_iterations| {
+        let o = DynamicOptions {
+            linear_solver,
+            max_iterations,
+            ..options
+        };
+        let mut nm = Newmark::new(&model, Cholesky::new(&model.pattern).unwrap(), o).unwrap();
+        nm.initialise_acceleration().unwrap();
+        nm
+    };
+    let mut tight = start(DEFAULT_LAGGED, 4);
+    let mut factorisations = 0;
+    for step in 0..60 {
+        let r = tight.step().unwrap_or_else(|e| panic!("step {step}: {e}"));
+        assert!(r.residual <= options.tolerance, "step {step}");
+        assert!(r.iterations <= 4);
+        factorisations += r.factorisations;
+    }
+    println!("max_iterations = 4: {factorisations} factorisations in 60 steps");
+    let (mut lagged, mut direct) = (start(DEFAULT_LAGGED, 1), start(LinearSolver::Direct, 1));
+    for step in 0..30 {
+        let (a, b) = (lagged.step().unwrap(), direct.step().unwrap());
+        assert_eq!((a.iterations, a.factorisations), (1, 1), "step {step}");
+        assert_eq!((b.iterations, b.factorisations), (1, 1), "step {step}");
+        assert_eq!(lagged.state.d, direct.state.d, "step {step}");
+    }
+}
+
 /// Without stiffness-proportional damping the exact tangent is the whole
 /// Newton matrix, and Newton converges quadratically: three iterations a
 /// step (the residual goes ~1 → 1e-2 → 1e-5 → 1e-12), against six or seven on R K Rᵀ.
