@@ -23,6 +23,18 @@ pub fn polar_rotation(f: &Matrix3<f64>, guess: &Matrix3<f64>) -> Matrix3<f64> {
     if scale == 0.0 || det <= 1e-6 * scale * scale * scale {
         return guess * svd_rotation(&g);
     }
+    // Gᵀ·F already symmetric to round-off: the guess is the polar rotation
+    // (a converged iteration leaves its skew part below 4e-16 of |G|; the
+    // iteration would move R by as much). What a residual at an unchanged
+    // state finds: a step's first iterate is the last one's, except next to
+    // prescribed DOFs that moved.
+    let skew = (g[(0, 1)] - g[(1, 0)])
+        .abs()
+        .max((g[(0, 2)] - g[(2, 0)]).abs())
+        .max((g[(1, 2)] - g[(2, 1)]).abs());
+    if skew <= 1e-15 * scale {
+        return *guess;
+    }
     // Higham's Newton iteration X ← (ζX + (ζX)^−T)/2, scaled by ζ ≈ |det X|^(−1/3)
     // while far from converged (a warm start, det X within 1e-2 of 1, starts
     // unscaled; any ζ > 0 keeps the polar factor, so ζ need not be exact).
@@ -115,6 +127,21 @@ mod tests {
                 prop_assert!((got - r).norm() < 1e-10, "{got} vs {r}");
             }
         }
+    }
+
+    /// A residual at an unchanged state finds its rotations converged: the
+    /// guess comes back as it is, without an iteration.
+    #[test]
+    fn a_converged_rotation_is_returned_as_it_is() {
+        let r = Rotation3::from_axis_angle(&Vector3::y_axis(), 0.7).into_inner();
+        let s = Matrix3::new(1.03, 0.01, 0.0, 0.01, 0.98, 0.02, 0.0, 0.02, 1.01);
+        let f = r * s;
+        let first = polar_rotation(&f, &Matrix3::identity());
+        assert!((first - r).norm() < 1e-14);
+        assert_eq!(polar_rotation(&f, &first), first);
+        // A changed F is iterated again.
+        let moved = f + Matrix3::from_element(1e-9);
+        assert_ne!(polar_rotation(&moved, &first), first);
     }
 
     #[test]
