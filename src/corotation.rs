@@ -23,16 +23,19 @@ pub fn polar_rotation(f: &Matrix3<f64>, guess: &Matrix3<f64>) -> Matrix3<f64> {
     if scale == 0.0 || det <= 1e-6 * scale * scale * scale {
         return guess * svd_rotation(&g);
     }
-    // Gᵀ·F already symmetric to round-off: the guess is the polar rotation
-    // (a converged iteration leaves its skew part below 4e-16 of |G|; the
-    // iteration would move R by as much). What a residual at an unchanged
-    // state finds: a step's first iterate is the last one's, except next to
-    // prescribed DOFs that moved.
+    // Gᵀ·F already symmetric positive definite to round-off: the guess is
+    // the polar rotation (a converged iteration leaves its skew part below
+    // 4e-16 of |G|; the iteration would move R by as much). What a residual
+    // at an unchanged state finds: a step's first iterate is the last one's,
+    // except next to prescribed DOFs that moved. Symmetric is not enough: a
+    // half turn is symmetric, and its polar rotation is itself, not I.
     let skew = (g[(0, 1)] - g[(1, 0)])
         .abs()
         .max((g[(0, 2)] - g[(2, 0)]).abs())
         .max((g[(1, 2)] - g[(2, 1)]).abs());
-    if skew <= 1e-15 * scale {
+    // Leading minors (det > 0 is checked above).
+    let definite = g[(0, 0)] > 0.0 && g[(0, 0)] * g[(1, 1)] - g[(0, 1)] * g[(1, 0)] > 0.0;
+    if skew <= 1e-15 * scale && definite {
         return *guess;
     }
     // Higham's Newton iteration X ← (ζX + (ζX)^−T)/2, scaled by ζ ≈ |det X|^(−1/3)
@@ -142,6 +145,16 @@ mod tests {
         // A changed F is iterated again.
         let moved = f + Matrix3::from_element(1e-9);
         assert_ne!(polar_rotation(&moved, &first), first);
+        // A half turn from the identity is symmetric but not definite: its
+        // polar rotation is itself.
+        let half = Rotation3::from_axis_angle(
+            &nalgebra::Unit::new_normalize(Vector3::new(1.0, 2.0, -0.5)),
+            std::f64::consts::PI,
+        )
+        .into_inner();
+        let got = polar_rotation(&half, &Matrix3::identity());
+        check_rotation(&got);
+        assert!((got - half).norm() < 1e-12, "{got} vs {half}");
     }
 
     #[test]
