@@ -157,6 +157,22 @@ fn damped_dynamics_newton_converges_quadratically() {
     assert!(rel.len() <= 5, "{rel:?}");
 }
 
+/// A Newmark integrator of `model` with `options` and `linear_solver`
+/// (AMD ordering, one thread), its initial acceleration computed.
+fn integrator(
+    model: &Model,
+    options: DynamicOptions,
+    linear_solver: xfem_cut::dynamics::LinearSolver,
+) -> Newmark<'_> {
+    let o = DynamicOptions {
+        linear_solver,
+        ..options
+    };
+    let mut nm = Newmark::new(model, Cholesky::new(&model.pattern).unwrap(), o).unwrap();
+    nm.initialise_acceleration().unwrap();
+    nm
+}
+
 /// Newton iterations of each of `steps` steps of a shipped case at level 0
 /// (AMD ordering, one thread: deterministic), with `edit` applied to the case text.
 fn iterations(file: &str, edit: (&str, &str), exact_tangent: bool, steps: usize) -> Vec<usize> {
@@ -243,15 +259,7 @@ fn the_default_lagged_step_of_the_shipped_scenes_is_pinned() {
     ] {
         let (model, options) = case(file, ("", ""));
         assert_eq!(options.linear_solver, DEFAULT_LAGGED, "{file}");
-        let start = |linear_solver| {
-            let o = DynamicOptions {
-                linear_solver,
-                ..options
-            };
-            let mut nm = Newmark::new(&model, Cholesky::new(&model.pattern).unwrap(), o).unwrap();
-            nm.initialise_acceleration().unwrap();
-            nm
-        };
+        let start = |linear_solver| integrator(&model, options, linear_solver);
         let (mut direct, mut lagged) = (start(LinearSolver::Direct), start(DEFAULT_LAGGED));
         let (mut newton, mut factorisations, mut worst) = (Vec::new(), 0, 0.0f64);
         for _ in 0..steps {
@@ -290,15 +298,7 @@ fn the_default_lagged_step_of_the_shipped_scenes_is_pinned() {
 fn the_default_step_follows_the_refactorising_step_over_a_thousand_steps() {
     use xfem_cut::dynamics::{LinearSolver, DEFAULT_LAGGED};
     let (model, options) = case("bend_dynamic.toml", ("", ""));
-    let start = |linear_solver| {
-        let o = DynamicOptions {
-            linear_solver,
-            ..options
-        };
-        let mut nm = Newmark::new(&model, Cholesky::new(&model.pattern).unwrap(), o).unwrap();
-        nm.initialise_acceleration().unwrap();
-        nm
-    };
+    let start = |linear_solver| integrator(&model, options, linear_solver);
     let (mut direct, mut lagged) = (start(LinearSolver::Direct), start(DEFAULT_LAGGED));
     let (mut worst, mut worst_energy, mut factorisations) = (0.0f64, 0.0f64, 0);
     for _ in 0..1000 {
@@ -331,13 +331,10 @@ fn the_lagged_default_keeps_the_iteration_limit_of_newton() {
     let (model, options) = case("bend_dynamic.toml", ("", ""));
     let start = |linear_solver, max_iterations| {
         let o = DynamicOptions {
-            linear_solver,
             max_iterations,
             ..options
         };
-        let mut nm = Newmark::new(&model, Cholesky::new(&model.pattern).unwrap(), o).unwrap();
-        nm.initialise_acceleration().unwrap();
-        nm
+        integrator(&model, o, linear_solver)
     };
     let mut tight = start(DEFAULT_LAGGED, 4);
     let mut factorisations = 0;
@@ -378,15 +375,7 @@ fn without_stiffness_damping_newton_on_the_exact_tangent_is_quadratic() {
 fn beside_direct(linear_solver: xfem_cut::dynamics::LinearSolver) -> (usize, usize, usize, f64) {
     use xfem_cut::dynamics::LinearSolver;
     let (model, options) = case("bend_dynamic.toml", ("", ""));
-    let start = |linear_solver| {
-        let o = DynamicOptions {
-            linear_solver,
-            ..options
-        };
-        let mut nm = Newmark::new(&model, Cholesky::new(&model.pattern).unwrap(), o).unwrap();
-        nm.initialise_acceleration().unwrap();
-        nm
-    };
+    let start = |linear_solver| integrator(&model, options, linear_solver);
     let mut direct = start(LinearSolver::Direct);
     let mut fast = start(linear_solver);
     let (mut worst, mut factorisations, mut cg, mut newton) = (0.0f64, 0, 0, 0);
