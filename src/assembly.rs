@@ -385,9 +385,28 @@ impl Pass<'_> {
                         &mut scratch.local_y[..3 * m],
                         &mut scratch.local_forces[..3 * m],
                     );
+                    // Positions from the element's first node, not the
+                    // origin: Rᵀ(x + d) − x of a body far from the origin
+                    // would carry (Rᵀ − I) x, a rigid translation the
+                    // stiffness annihilates only up to round-off (a body
+                    // 0.3 m off the origin stalled Newton at 1e-9).
+                    let n_nodes = model.mesh.n_nodes();
+                    let first = shapes[0] as usize;
+                    let origin = if first < n_nodes {
+                        model.shape_ref[first]
+                    } else {
+                        Vector3::zeros()
+                    };
                     kernel.local_displacements(
                         values,
-                        |a| model.shape_ref[shapes[a] as usize],
+                        |a| {
+                            let s = shapes[a] as usize;
+                            if s < n_nodes {
+                                model.shape_ref[s] - origin
+                            } else {
+                                model.shape_ref[s]
+                            }
+                        },
                         u,
                         y,
                     );

@@ -153,11 +153,15 @@ fn run() -> Result<()> {
                 }
             } else {
                 println!(
-                    "static: solve {:.1} ms, Newton iterations per load step {:?}, relative residual {:.2e}, {} factorisations",
+                    "static: solve {:.1} ms, Newton iterations per load step {:?}, relative residual {:.2e}, {} factorisations{}",
                     t.solve * 1e3,
                     result.iterations,
                     result.residual,
-                    result.factorisations
+                    result.factorisations,
+                    match result.cutbacks {
+                        0 => String::new(),
+                        n => format!(", {n} load steps halved (Newton did not finish them)"),
+                    }
                 );
             }
             std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;

@@ -211,7 +211,7 @@ impl Plan {
             "Newton load steps",
             corot && dynamic.is_none(),
             if corot && dynamic.is_none() {
-                "corotational static"
+                "corotational static; a load step Newton does not finish is halved, down to 1/256 of it"
             } else {
                 "not needed"
             },

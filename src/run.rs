@@ -66,6 +66,8 @@ pub struct RunResult {
     pub iterations: Vec<usize>,
     pub residual: f64,
     pub factorisations: usize,
+    /// Static: load steps halved because Newton did not finish them.
+    pub cutbacks: usize,
     /// Dynamic runs: (time, displacement) frames kept for output.
     pub frames: Vec<(f64, Vec<f64>)>,
     pub energies: Vec<(f64, Energies)>,
@@ -176,6 +178,7 @@ pub fn solve_scene_with(
                 iterations: sol.iterations,
                 residual: sol.residual,
                 factorisations: sol.factorisations,
+                cutbacks: sol.cutbacks,
                 frames: Vec::new(),
                 energies: Vec::new(),
                 steps: None,
@@ -237,6 +240,7 @@ pub fn solve_scene_with(
                 iterations,
                 residual,
                 factorisations,
+                cutbacks: 0,
                 frames,
                 energies,
                 steps: Some(stats.summary()),
@@ -314,6 +318,7 @@ fn solve_progressive(
         iterations,
         residual,
         factorisations: result.sweep.factorisations,
+        cutbacks: 0,
         frames: Vec::new(),
         energies,
         steps: None,

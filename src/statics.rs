@@ -5,6 +5,10 @@ use crate::assembly::{evaluate, gather_free, scatter_free_add, Request, Rotation
 use crate::model::{Formulation, Model};
 use crate::solve::{Cholesky, Parallelism, SolveError};
 
+/// Halvings of a nominal load step before a static solve gives up: a load
+/// step down to 1/256 of `load_steps`' increment.
+pub const MAX_CUTBACKS: u32 = 8;
+
 /// Options of the static solve.
 #[derive(Debug, Clone, Copy)]
 pub struct StaticOptions {
@@ -40,9 +44,12 @@ impl Default for StaticOptions {
 pub enum StaticError {
     #[error(transparent)]
     Solve(#[from] SolveError),
-    #[error("Newton did not converge in load step {step}: relative residual {residual:e} after {iterations} iterations")]
+    #[error("Newton did not converge at load fraction {lambda}: relative residual {residual:e} after {iterations} iterations ({cutbacks} load steps halved before)")]
     NoConvergence {
-        step: usize,
+        /// The load fraction λ the failed load step aimed at.
+        lambda: f64,
+        /// Load steps halved before this failure.
+        cutbacks: usize,
         iterations: usize,
         residual: f64,
     },
@@ -55,7 +62,7 @@ pub enum StaticError {
 pub struct StaticSolution {
     /// Displacement, all DOFs (standard and enriched).
     pub d: Vec<f64>,
-    /// Newton iterations per load step.
+    /// Newton iterations per accepted load step.
     pub iterations: Vec<usize>,
     /// Final relative residual ‖r_free‖ / max(‖f_ext‖, ‖f_int‖).
     pub residual: f64,
@@ -63,6 +70,9 @@ pub struct StaticSolution {
     pub energy: f64,
     /// Numeric factorisations performed.
     pub factorisations: usize,
+    /// Load steps that failed (no convergence, not finite, no positive
+    /// definite matrix) and were halved; `iterations` has the accepted ones.
+    pub cutbacks: usize,
     pub rotations: Rotations,
 }
 
@@ -102,134 +112,167 @@ pub fn solve_static_along(
     let mut residual = f64::INFINITY;
     let factor_start = chol.factorisations;
     let mut energy = 0.0;
-    for step in 1..=steps {
-        let lambda = step as f64 / steps as f64;
+    // The load path in units of 1/(steps·2^MAX_CUTBACKS): the nominal steps
+    // land on k/steps exactly; a load step that fails is halved (the state
+    // before it restored), and the increment doubles back after each success.
+    let unit = 1usize << MAX_CUTBACKS;
+    let total = steps * unit;
+    let (mut done, mut increment) = (0usize, unit);
+    let mut cutbacks = 0;
+    let (mut saved_d, mut saved_rot) = (d.clone(), rot.clone());
+    while done < total {
+        let target = (done + increment).min(total);
+        let lambda = target as f64 / total as f64;
+        let last = target == total;
+        saved_d.copy_from_slice(&d);
+        saved_rot.0.copy_from_slice(&rot.0);
         for p in &model.prescribed {
             d[p.dof] = prescribed(lambda, p);
         }
-        let mut it = 0;
-        loop {
-            // For the linear formulation the tangent is constant: assemble and factorise once.
-            let want_tangent = !linear || chol.factorisations == factor_start;
-            energy = evaluate(
-                model,
-                &d,
-                &mut rot,
-                &mut ws,
-                Request {
-                    forces: Some(&mut f_int),
-                    tangent: want_tangent.then_some(&mut tangent[..]),
-                    update_rotations: !linear,
-                    exact_tangent: opts.exact_tangent,
-                },
-            );
-            for ((r, l), f) in r_full.iter_mut().zip(&model.load).zip(&f_int) {
-                *r = lambda * l - f;
-            }
-            gather_free(model, &r_full, &mut r_free);
-            let scale = load_norm.max(norm(&f_int));
-            let r_norm = norm(&r_free);
-            residual = if r_norm == 0.0 { 0.0 } else { r_norm / scale };
-            if !residual.is_finite() {
-                return Err(StaticError::NotFinite);
-            }
-            // Intermediate load steps only need to stay close to the path.
-            let tolerance = if step == steps {
-                opts.tolerance
-            } else {
-                opts.tolerance.max(1e-6)
-            };
-            if residual <= tolerance || (linear && it == 1) {
-                break;
-            }
-            if it == opts.max_iterations {
-                return Err(StaticError::NoConvergence {
-                    step,
-                    iterations: it,
-                    residual,
-                });
-            }
-            if want_tangent {
-                if let Err(e) = chol.factorize(&tangent) {
-                    if linear || !opts.exact_tangent {
-                        return Err(e.into());
+        let mut attempt = || -> Result<usize, StaticError> {
+            let mut it = 0;
+            loop {
+                // For the linear formulation the tangent is constant: assemble and factorise once.
+                let want_tangent = !linear || chol.factorisations == factor_start;
+                energy = evaluate(
+                    model,
+                    &d,
+                    &mut rot,
+                    &mut ws,
+                    Request {
+                        forces: Some(&mut f_int),
+                        tangent: want_tangent.then_some(&mut tangent[..]),
+                        update_rotations: !linear,
+                        exact_tangent: opts.exact_tangent,
+                    },
+                );
+                for ((r, l), f) in r_full.iter_mut().zip(&model.load).zip(&f_int) {
+                    *r = lambda * l - f;
+                }
+                gather_free(model, &r_full, &mut r_free);
+                let scale = load_norm.max(norm(&f_int));
+                let r_norm = norm(&r_free);
+                residual = if r_norm == 0.0 { 0.0 } else { r_norm / scale };
+                if !residual.is_finite() {
+                    return Err(StaticError::NotFinite);
+                }
+                // Intermediate load steps only need to stay close to the path.
+                let tolerance = if last {
+                    opts.tolerance
+                } else {
+                    opts.tolerance.max(1e-6)
+                };
+                if residual <= tolerance || (linear && it == 1) {
+                    break;
+                }
+                if it == opts.max_iterations {
+                    return Err(StaticError::NoConvergence {
+                        lambda,
+                        cutbacks,
+                        iterations: it,
+                        residual,
+                    });
+                }
+                if want_tangent {
+                    if let Err(e) = chol.factorize(&tangent) {
+                        if linear || !opts.exact_tangent {
+                            return Err(e.into());
+                        }
+                        // Not positive definite away from a stable equilibrium
+                        // (compression, buckling): this iteration takes the exact
+                        // tangent shifted by μ diag|K| (the smallest μ = 10⁻⁴…10²
+                        // that factorises: a descent direction for Π that keeps
+                        // the geometric softening, so Newton can walk off a
+                        // saddle into a buckled state), else R K Rᵀ.
+                        if chol.factorize_shifted(&tangent, &mut shifted).is_none() {
+                            evaluate(
+                                model,
+                                &d,
+                                &mut rot,
+                                &mut ws,
+                                Request {
+                                    forces: None,
+                                    tangent: Some(&mut tangent),
+                                    update_rotations: false,
+                                    exact_tangent: false,
+                                },
+                            );
+                            chol.factorize(&tangent)?;
+                        }
                     }
-                    // Not positive definite away from a stable equilibrium
-                    // (compression, buckling): this iteration takes the exact
-                    // tangent shifted by μ diag|K| (the smallest μ = 10⁻⁴…10²
-                    // that factorises: a descent direction for Π that keeps
-                    // the geometric softening, so Newton can walk off a
-                    // saddle into a buckled state), else R K Rᵀ.
-                    if chol.factorize_shifted(&tangent, &mut shifted).is_none() {
-                        evaluate(
+                }
+                chol.solve_in_place(&mut r_free);
+                if linear {
+                    scatter_free_add(model, &r_free, &mut d);
+                } else {
+                    // Backtracking: far from the solution a full step can
+                    // overshoot. The corotational forces derive from a potential,
+                    // Π = strain energy − λ f·d, and the step is a descent direction
+                    // for it (the tangent is positive definite), so a step is taken
+                    // when it lowers Π, or the residual norm (near the solution Π's
+                    // change is below its round-off). The residual norm alone is a
+                    // poor merit: it is dominated by stiff modes, and on a slender
+                    // beam in bending it rejected good steps.
+                    let before = residual * scale;
+                    let potential = |energy: f64, d: &[f64]| energy - lambda * dot(&model.load, d);
+                    let before_potential = potential(energy, &d);
+                    start.copy_from_slice(&d);
+                    let mut alpha = 1.0;
+                    for _ in 0..8 {
+                        d.copy_from_slice(&start);
+                        for (dof, &eq) in model.equation.iter().enumerate() {
+                            if eq != crate::model::NONE {
+                                d[dof] += alpha * r_free[eq as usize];
+                            }
+                        }
+                        let trial_energy = evaluate(
                             model,
                             &d,
                             &mut rot,
                             &mut ws,
                             Request {
-                                forces: None,
-                                tangent: Some(&mut tangent),
-                                update_rotations: false,
+                                forces: Some(&mut f_int),
+                                tangent: None,
+                                update_rotations: true,
                                 exact_tangent: false,
                             },
                         );
-                        chol.factorize(&tangent)?;
-                    }
-                }
-            }
-            chol.solve_in_place(&mut r_free);
-            if linear {
-                scatter_free_add(model, &r_free, &mut d);
-            } else {
-                // Backtracking: far from the solution a full step can
-                // overshoot. The corotational forces derive from a potential,
-                // Π = strain energy − λ f·d, and the step is a descent direction
-                // for it (the tangent is positive definite), so a step is taken
-                // when it lowers Π, or the residual norm (near the solution Π's
-                // change is below its round-off). The residual norm alone is a
-                // poor merit: it is dominated by stiff modes, and on a slender
-                // beam in bending it rejected good steps.
-                let before = residual * scale;
-                let potential = |energy: f64, d: &[f64]| energy - lambda * dot(&model.load, d);
-                let before_potential = potential(energy, &d);
-                start.copy_from_slice(&d);
-                let mut alpha = 1.0;
-                for _ in 0..8 {
-                    d.copy_from_slice(&start);
-                    for (dof, &eq) in model.equation.iter().enumerate() {
-                        if eq != crate::model::NONE {
-                            d[dof] += alpha * r_free[eq as usize];
+                        let trial: f64 = model
+                            .equation
+                            .iter()
+                            .enumerate()
+                            .filter(|(_, &eq)| eq != crate::model::NONE)
+                            .map(|(dof, _)| (lambda * model.load[dof] - f_int[dof]).powi(2))
+                            .sum::<f64>()
+                            .sqrt();
+                        if trial < before || potential(trial_energy, &d) < before_potential {
+                            break;
                         }
+                        alpha *= 0.5;
                     }
-                    let trial_energy = evaluate(
-                        model,
-                        &d,
-                        &mut rot,
-                        &mut ws,
-                        Request {
-                            forces: Some(&mut f_int),
-                            tangent: None,
-                            update_rotations: true,
-                            exact_tangent: false,
-                        },
-                    );
-                    let trial: f64 = model
-                        .equation
-                        .iter()
-                        .enumerate()
-                        .filter(|(_, &eq)| eq != crate::model::NONE)
-                        .map(|(dof, _)| (lambda * model.load[dof] - f_int[dof]).powi(2))
-                        .sum::<f64>()
-                        .sqrt();
-                    if trial < before || potential(trial_energy, &d) < before_potential {
-                        break;
-                    }
-                    alpha *= 0.5;
                 }
+                it += 1;
             }
-            it += 1;
+            Ok(it)
+        };
+        match attempt() {
+            Ok(it) => {
+                iterations.push(it);
+                done = target;
+                increment = (2 * increment).min(unit);
+            }
+            Err(
+                StaticError::NoConvergence { .. }
+                | StaticError::NotFinite
+                | StaticError::Solve(SolveError::NotPositiveDefinite),
+            ) if !linear && increment > 1 => {
+                d.copy_from_slice(&saved_d);
+                rot.0.copy_from_slice(&saved_rot.0);
+                increment /= 2;
+                cutbacks += 1;
+            }
+            Err(e) => return Err(e),
         }
-        iterations.push(it);
     }
     if d.iter().any(|v| !v.is_finite()) {
         return Err(StaticError::NotFinite);
@@ -240,6 +283,7 @@ pub fn solve_static_along(
         residual,
         energy,
         factorisations: chol.factorisations - factor_start,
+        cutbacks,
         rotations: rot,
     })
 }

@@ -731,3 +731,117 @@ points = [[0.0135, 0.02, 0.109]]
     println!("Tet4: static {us:?}, settled dynamics {ud:?}: relative difference {difference:.1e}");
     assert!(difference < 1e-8);
 }
+
+/// A soft cantilever (x-gravity, tip front inside elements at an angle) as a
+/// corotational static scene, its box, cut and probe moved by `offset`.
+fn soft_cantilever(offset: [f64; 3], steps_and_iterations: (usize, usize)) -> String {
+    let at = |p: [f64; 3]| {
+        format!(
+            "[{}, {}, {}]",
+            p[0] + offset[0],
+            p[1] + offset[1],
+            p[2] + offset[2]
+        )
+    };
+    let (steps, iterations) = steps_and_iterations;
+    format!(
+        r#"name = "soft"
+description = "a soft cantilever with a tip front"
+[body]
+box = [{}, {}]
+levels = [[2, 2, 12]]
+element = "tet4"
+[material]
+young = 1e5
+poisson = 0.3
+density = 1000.0
+[[cut]]
+origin = {}
+u = [0.0213, 0.0, 0.003]
+v = [0.0, 0.04, 0.0]
+[[fix]]
+min = [-inf, -inf, {}]
+max = [inf, inf, {}]
+displacement = [0.0, 0.0, 0.0]
+[gravity]
+acceleration = [30.0, 0.0, 0.0]
+[analysis]
+type = "static"
+formulation = "corotational"
+load_steps = {steps}
+max_iterations = {iterations}
+[[probe]]
+points = [{}, {}]
+"#,
+        at([0.0, 0.0, 0.0]),
+        at([0.02, 0.02, 0.15]),
+        at([-0.01, -0.01, 0.0555]),
+        offset[2],
+        offset[2],
+        at([0.01, 0.01, 0.15]),
+        at([0.0, 0.01, 0.0565]),
+    )
+}
+
+fn probes(text: &str) -> (Vec<Vector3<f64>>, xfem_cut::run::RunResult) {
+    let scene = xfem_cut::scene::Scene::parse(text, std::path::Path::new("soft.toml")).unwrap();
+    let result = xfem_cut::run::solve_scene(&scene, 0, None, false).unwrap();
+    (
+        xfem_cut::run::probe_values(&scene, &result).unwrap(),
+        result,
+    )
+}
+
+fn largest_difference(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> f64 {
+    let scale = a.iter().map(|v| v.norm()).fold(0.0, f64::max);
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).norm() / scale)
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn a_corotational_tip_front_scene_far_from_the_origin_gives_the_same_answer() {
+    // Tip groups are dense and rotate their local displacements Rᵀ(x + d) − x:
+    // with x measured from the origin, a body 0.3 m away stalled Newton at a
+    // relative residual of 1e-9 (the 1e-10 tolerance never met).
+    let (here, _) = probes(&soft_cantilever([0.0; 3], (10, 50)));
+    for offset in [[0.7, -1.3, 2.1], [-30.0, 20.0, 10.0]] {
+        let (there, result) = probes(&soft_cantilever(offset, (10, 50)));
+        assert!(result.residual <= 1e-10, "{offset:?}: {}", result.residual);
+        let diff = largest_difference(&here, &there);
+        assert!(diff < 1e-9, "{offset:?}: {diff:e}");
+    }
+}
+
+#[test]
+fn a_load_step_newton_cannot_finish_is_halved_until_it_can() {
+    // One load step and 6 iterations: too few for the whole load, enough for
+    // a fraction of it; ten load steps and 50 iterations: the reference.
+    let (reference, r) = probes(&soft_cantilever([0.0; 3], (10, 50)));
+    assert_eq!(r.cutbacks, 0);
+    let (halved, result) = probes(&soft_cantilever([0.0; 3], (1, 6)));
+    assert!(result.cutbacks > 0);
+    assert!(
+        result.iterations.iter().all(|&it| it <= 6),
+        "{:?}",
+        result.iterations
+    );
+    assert!(result.iterations.len() > 1, "{:?}", result.iterations);
+    let diff = largest_difference(&reference, &halved);
+    assert!(diff < 1e-9, "{diff:e}");
+    // Too few iterations for any 1/256 of the load: a typed error naming the load fraction.
+    let scene = xfem_cut::scene::Scene::parse(
+        &soft_cantilever([0.0; 3], (1, 1)),
+        std::path::Path::new("soft.toml"),
+    )
+    .unwrap();
+    let err = xfem_cut::run::solve_scene(&scene, 0, None, false)
+        .err()
+        .expect("fails");
+    let text = err.to_string();
+    assert!(
+        text.contains("soft.toml") && text.contains("load fraction"),
+        "{text}"
+    );
+}
