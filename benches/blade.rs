@@ -30,6 +30,10 @@ use xfem_cut::model::{Formulation, Model};
 use xfem_cut::solve::{BorderedSolve, Cholesky};
 use xfem_cut::study::fixtures::{beam_mesh, seed_beam, seed_blade};
 
+/// The allocator of the `xfem-cut` binary, so that these times are the CLI's.
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 /// The seed's beam on `mesh`, bottom clamped, gravity in +x, with mass.
 fn model(mesh: &TetMesh, cut: Option<CutSetup>, formulation: Formulation) -> Model {
     seed_beam(mesh.clone(), formulation, cut).unwrap()

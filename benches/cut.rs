@@ -16,6 +16,10 @@ use xfem_cut::model::{Formulation, Model};
 use xfem_cut::solve::{Cholesky, Parallelism};
 use xfem_cut::study::fixtures::{beam_mesh, seed_beam};
 
+/// The allocator of the `xfem-cut` binary, so that these times are the CLI's.
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 /// The seed's cut: from the face x = 0 through half the thickness at z = 0.1.
 fn seed_patch() -> PlanarPatch {
     PlanarPatch {

@@ -20,6 +20,10 @@ use xfem_cut::scene::{Analysis, Scene};
 use xfem_cut::solve::{Cholesky, Parallelism};
 use xfem_cut::study::fixtures::{beam_mesh, seed_beam};
 
+/// The allocator of the `xfem-cut` binary, so that these times are the CLI's.
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 /// The seed's beam, bottom clamped, gravity in +x, with mass.
 fn model(mesh: TetMesh, formulation: Formulation) -> Model {
     seed_beam(mesh, formulation, None).unwrap()
