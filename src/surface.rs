@@ -419,13 +419,51 @@ fn read_stl(path: &Path) -> Result<TriangleSurface, SurfaceError> {
         file: path.to_path_buf(),
         message: format!("not a readable STL file: {e}"),
     })?;
-    let vertices = mesh
+    let mut vertices: Vec<Point3<f64>> = mesh
         .vertices
         .iter()
         .map(|v| Point3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2])))
         .collect();
-    let triangles = mesh.faces.iter().map(|f| f.vertices).collect();
+    let triangles: Vec<[usize; 3]> = mesh.faces.iter().map(|f| f.vertices).collect();
+    if let Some(exact) = ascii_vertices_f64(path, &mesh.vertices, &triangles) {
+        vertices = exact;
+    }
     TriangleSurface::new(vertices, triangles, path)
+}
+
+/// An ASCII STL's vertices at the precision written (`stl_io` reads single
+/// precision, the binary format's: a patch 0.4 m long then moved its plane by
+/// 3e-8 m). The file's `vertex` lines in order, three a facet as `stl_io`
+/// read them, each checked to round to the single-precision value it read;
+/// `None` (keep those) for a binary file or any mismatch.
+fn ascii_vertices_f64(
+    path: &Path,
+    single: &[stl_io::Vertex],
+    triangles: &[[usize; 3]],
+) -> Option<Vec<Point3<f64>>> {
+    let text = std::fs::read_to_string(path).ok()?;
+    let mut lines = text
+        .lines()
+        .map(str::trim_start)
+        .filter(|l| l.starts_with("vertex"));
+    let mut exact: Vec<Option<Point3<f64>>> = vec![None; single.len()];
+    for t in triangles {
+        for &i in t {
+            let mut words = lines.next()?.split_whitespace().skip(1);
+            let mut p = [0.0; 3];
+            for (c, x) in p.iter_mut().enumerate() {
+                *x = words.next()?.parse::<f64>().ok()?;
+                if *x as f32 != single[i][c] {
+                    return None;
+                }
+            }
+            exact[i].get_or_insert(Point3::from(p));
+        }
+    }
+    if lines.next().is_some() {
+        return None;
+    }
+    exact.into_iter().collect()
 }
 
 /// The 3-node triangles of a gmsh MSH 4.1 file (every entity), through `mshio`.

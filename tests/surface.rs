@@ -153,6 +153,43 @@ fn a_planar_patch_written_as_triangles_equals_the_patch() {
     }
 }
 
+#[test]
+fn an_oblique_patch_in_an_ascii_stl_equals_the_patch_to_round_off() {
+    // Coordinates single precision cannot hold, a tip front inside elements:
+    // the STL's vertices are read as written (stl_io's single precision moved
+    // such a plane by ~1e-7 of its size, the solution by 1e-9…1e-7).
+    let mesh = bar([3, 3, 6]);
+    let p = PlanarPatch {
+        origin: Point3::new(-0.3141592653589793, -0.2718281828459045, 0.9),
+        u: Vector3::new(0.9876543210987654, 0.1234567890123457, 0.3333333333333333),
+        v: Vector3::new(-0.1111111111111111, 1.7320508075688772, 0.1414213562373095),
+    };
+    let (v, tris) = patch_triangles(&p, 1);
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("oblique.stl");
+    std::fs::write(&file, ascii_stl(&v, &tris)).unwrap();
+    let s = TriangleSurface::read(&file).unwrap();
+    let solve_with = |input: CutInput| {
+        let setup = setup_cut(&mesh, &[input]).unwrap();
+        assert!(setup.n_tip > 0, "the front must lie inside elements");
+        let m = model(
+            &mesh,
+            Some(setup),
+            Formulation::Linear,
+            Vector3::new(-9.81, 0.0, 0.0),
+            None,
+            false,
+        )
+        .unwrap();
+        let d = solve(&m);
+        (m, d)
+    };
+    let (m_ref, d_ref) = solve_with(CutInput::tip(&p, DEFAULT_SNAP, None));
+    let (m, d) = solve_with(CutInput::tip(&s, DEFAULT_SNAP, None));
+    let diff = relative_difference(&m_ref, &d_ref, &m, &d);
+    assert!(diff <= 1e-12, "{diff:e}");
+}
+
 /// An open cylindrical arc: the circle of radius 1.5 about (x, z) = (0, 2.6),
 /// angles −0.3…0.45 rad, y ∈ [−0.5, 1.5]: it enters through x = 0 at
 /// z ≈ 1.1 and ends inside the bar at x ≈ 0.65, z ≈ 1.25.
