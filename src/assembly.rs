@@ -155,6 +155,32 @@ fn for_each_group(
     }
 }
 
+/// Integration groups whose deformation gradient at `d` (all DOFs) has
+/// det F ≤ 0: inverted elements (or sides of cut elements).
+pub fn inverted_groups(model: &Model, d: &[f64]) -> usize {
+    let m = model
+        .elements
+        .iter()
+        .map(|e| e.shapes.len())
+        .max()
+        .unwrap_or(0);
+    let (mut disp, mut scratch) = (vec![Vector3::zeros(); m], Scratch::new(m));
+    let mut inverted = 0;
+    for_each_group(
+        model,
+        0..model.elements.len(),
+        d,
+        &mut disp,
+        &mut scratch,
+        |_, _, _, _, f, _| {
+            if f.determinant() <= 0.0 {
+                inverted += 1;
+            }
+        },
+    );
+    inverted
+}
+
 /// Adds the element vector `fa` of shape function `a` into the all-DOF vector `out`.
 fn add_nodal(out: &mut [f64], shapes: &[u32], a: usize, fa: &Vector3<f64>) {
     let s = shapes[a] as usize;

@@ -231,8 +231,24 @@ pub enum DynamicError {
     NoMass,
     #[error("the state became non-finite at step {0}")]
     NotFinite(usize),
-    #[error("Newton did not converge at step {step}: relative residual {residual:e}")]
-    NoConvergence { step: usize, residual: f64 },
+    #[error("Newton did not converge at step {step} (t = {time:.6} s): relative residual {residual:e}{}", inverted_hint(*inverted))]
+    NoConvergence {
+        step: usize,
+        time: f64,
+        residual: f64,
+        /// Integration groups with det F ≤ 0 at the last iterate.
+        inverted: usize,
+    },
+}
+
+/// What a failed step's message adds where elements inverted.
+fn inverted_hint(inverted: usize) -> String {
+    match inverted {
+        0 => String::new(),
+        n => format!(
+            "; {n} integration groups inverted (det F <= 0): a smaller dt, a ramp or a stiffer material may let the mesh follow"
+        ),
+    }
 }
 
 /// The state of the body at one time.
@@ -1187,7 +1203,9 @@ impl<'m> Newmark<'m> {
                 if o.max_iterations > 1 {
                     return Err(DynamicError::NoConvergence {
                         step: step_no,
+                        time: t_new,
                         residual,
+                        inverted: crate::assembly::inverted_groups(model, &d),
                     });
                 }
                 break;

@@ -845,3 +845,42 @@ fn a_load_step_newton_cannot_finish_is_halved_until_it_can() {
         "{text}"
     );
 }
+
+#[test]
+fn a_dynamic_step_that_fails_on_inverted_elements_says_so() {
+    // A column three times too soft to carry its weight collapses onto its
+    // clamp: elements invert and Newton stalls. The error names the step,
+    // its time and how many groups inverted.
+    let text = r#"name = "collapse"
+description = "a soft column collapsing under its weight"
+[body]
+box = [[0,0,0], [0.04, 0.04, 0.1]]
+levels = [[2, 2, 5]]
+element = "tet4"
+[material]
+young = 1000.0
+poisson = 0.3
+density = 1000.0
+[[fix]]
+min = [-inf, -inf, 0.0]
+max = [inf, inf, 0.0]
+displacement = [0.0, 0.0, 0.0]
+[gravity]
+acceleration = [0.0, 0.0, -30.0]
+[analysis]
+type = "dynamic"
+formulation = "corotational"
+dt = 0.01
+steps = 100
+"#;
+    let scene = xfem_cut::scene::Scene::parse(text, std::path::Path::new("collapse.toml")).unwrap();
+    let err = xfem_cut::run::solve_scene(&scene, 0, None, false)
+        .err()
+        .expect("the column collapses");
+    let message = err.to_string();
+    assert!(
+        message.starts_with("collapse.toml: Newton did not converge at step"),
+        "{message}"
+    );
+    assert!(message.contains("integration groups inverted"), "{message}");
+}
