@@ -38,7 +38,8 @@ SETS = {
 VENV_PY = str(ROOT / ".venv" / "bin" / "python")
 # Corotational references (scikit-fem): (case, family, level, degree, load steps, load scale,
 # tolerance). Newton with the exact tangent (rotation derivative included): 3-4 iterations per
-# load step; P2 on L0 takes about a minute.
+# load step; each Newton system by MUMPS (petsc4py): P2 on L0 about a minute, on L1 about 3 min
+# and up to 19 GB (the vectorised tangent).
 # L0 in every set (the tests read it); P1 on L1-L2 and P2 on L1 only in the sets with the fine
 # references (`make refs`), so the corotational study has an independent reference beyond L0.
 COROT = [(case, "beam_crack", level, degree, 20, 1.0, 1e-11)
