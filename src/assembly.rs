@@ -158,20 +158,14 @@ fn for_each_group(
 /// Integration groups whose deformation gradient at `d` (all DOFs) has
 /// det F ≤ 0: inverted elements (or sides of cut elements).
 pub fn inverted_groups(model: &Model, d: &[f64]) -> usize {
-    let m = model
-        .elements
-        .iter()
-        .map(|e| e.shapes.len())
-        .max()
-        .unwrap_or(0);
-    let (mut disp, mut scratch) = (vec![Vector3::zeros(); m], Scratch::new(m));
+    let mut ws = Workspace::new(model);
     let mut inverted = 0;
     for_each_group(
         model,
         0..model.elements.len(),
         d,
-        &mut disp,
-        &mut scratch,
+        &mut ws.disp,
+        &mut ws.scratch,
         |_, _, _, _, f, _| {
             if f.determinant() <= 0.0 {
                 inverted += 1;

@@ -2,6 +2,8 @@
 //! Analytical checks of the elasticity core: patch tests, rigid motions,
 //! manufactured solutions, the cantilever, Newmark energy and frequency.
 
+mod common;
+use common::largest_difference;
 use nalgebra::{Matrix3, Point3, Rotation3, Unit, Vector3};
 use xfem_cut::assembly::{evaluate, Request, Rotations, Workspace};
 use xfem_cut::material::Material;
@@ -790,14 +792,6 @@ fn probes(text: &str) -> (Vec<Vector3<f64>>, xfem_cut::run::RunResult) {
         xfem_cut::run::probe_values(&scene, &result).unwrap(),
         result,
     )
-}
-
-fn largest_difference(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> f64 {
-    let scale = a.iter().map(|v| v.norm()).fold(0.0, f64::max);
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (x - y).norm() / scale)
-        .fold(0.0, f64::max)
 }
 
 #[test]

@@ -7,6 +7,8 @@
 //! both: a dense group's rotated positions were measured from the origin, and
 //! STL vertices were read in single precision.)
 
+mod common;
+use common::largest_difference;
 use nalgebra::{Point3, Vector3};
 use std::path::Path;
 use xfem_cut::run::{probe_values, solve_scene};
@@ -200,14 +202,6 @@ fn probes(text: &str, dir: &Path) -> Vec<Vector3<f64>> {
     let scene = Scene::parse(text, &dir.join("random.toml")).unwrap();
     let result = solve_scene(&scene, 0, None, false).unwrap_or_else(|e| panic!("{e}\n{text}"));
     probe_values(&scene, &result).unwrap()
-}
-
-fn largest_difference(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> f64 {
-    let scale = a.iter().map(|v| v.norm()).fold(0.0, f64::max);
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (x - y).norm() / scale)
-        .fold(0.0, f64::max)
 }
 
 #[test]

@@ -26,9 +26,9 @@ pub fn build(scene: &Scene, mesh: &TetMesh, cut: Option<CutSetup>) -> Result<Mod
         let mut c = [None; 3];
         for fx in &scene.fixes {
             if (0..3).all(|k| p[k] >= fx.min[k] - tol && p[k] <= fx.max[k] + tol) {
-                for k in 0..3 {
-                    if fx.components[k] {
-                        c[k] = Some(fx.displacement[k]);
+                for ((ck, &on), &u) in c.iter_mut().zip(&fx.components).zip(&fx.displacement) {
+                    if on {
+                        *ck = Some(u);
                     }
                 }
             }

@@ -75,3 +75,13 @@ pub fn relative_difference(a: &Model, da: &[f64], b: &Model, db: &[f64]) -> f64 
     }
     diff / scale
 }
+
+/// The largest difference of two probe lists, relative to the largest
+/// displacement of the first.
+pub fn largest_difference(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> f64 {
+    let scale = a.iter().map(|v| v.norm()).fold(0.0, f64::max);
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).norm() / scale)
+        .fold(0.0, f64::max)
+}
