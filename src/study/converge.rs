@@ -10,12 +10,13 @@
 //! extended front, and geometric tip enrichment within
 //! [`GEOMETRIC_TIP_RADIUS`].
 
+use crate::assembly::{evaluate, Request, Rotations, Workspace};
 use crate::cut::{CutSurface, PlanarPatch};
 use crate::io::csv::{read_rows, sci, write_rows};
 use crate::io::IoError;
 use crate::locate::Locator;
 use crate::mesh::ElementKind;
-use crate::model::Formulation;
+use crate::model::{Formulation, Model};
 use crate::run::{evaluate_on_side, solve_scene};
 use crate::scene::{BodyGeometry, FrontMode, Scene};
 use crate::study::reference::{out_dir, read_reference, Reference};
@@ -53,10 +54,17 @@ pub struct Row {
     /// Largest probe error relative to the largest probe displacement (NaN without probes).
     #[serde(rename = "probe_rel", serialize_with = "sci")]
     pub probes: f64,
+    /// Total potential energy Π = E_strain − f·u of the solution (J; NaN in
+    /// rows of the layouts before it). With the same body and Dirichlet
+    /// data, Π of a conforming solution exceeds the exact one by half its
+    /// energy-norm error squared: of two runs, the lower Π is the more
+    /// accurate in energy, whatever the L2 errors say.
+    #[serde(rename = "potential_energy_j", serialize_with = "sci")]
+    pub energy: f64,
 }
 
 pub const CSV_HEADER: &str =
-    "case,variant,element,level,h,elements,dofs,precompute_s,solve_s,l2_rel,opening_rel,probe_rel";
+    "case,variant,element,level,h,elements,dofs,precompute_s,solve_s,l2_rel,opening_rel,probe_rel,potential_energy_j";
 
 /// A row as read, before its element name is checked (`Row` holds a `&'static str`).
 #[derive(Deserialize)]
@@ -74,6 +82,8 @@ struct RowRecord {
     /// Rows of the first layout (10 fields) lack these two.
     opening_rel: Option<f64>,
     probe_rel: Option<f64>,
+    /// Rows of the first two layouts (10 and 12 fields) lack it.
+    potential_energy_j: Option<f64>,
 }
 
 impl<'de> Deserialize<'de> for Row {
@@ -109,6 +119,7 @@ impl TryFrom<RowRecord> for Row {
             l2: r.l2_rel,
             opening: r.opening_rel.unwrap_or(f64::NAN),
             probes: r.probe_rel.unwrap_or(f64::NAN),
+            energy: r.potential_energy_j.unwrap_or(f64::NAN),
         })
     }
 }
@@ -401,9 +412,10 @@ pub fn converge_case(
             l2: err.relative,
             opening,
             probes: probe_error,
+            energy: potential_energy(&result.model, &result.d),
         };
         progress(&format!(
-            "{} {} {} L{}: {} DOFs, L2 {:.3e}, opening {:.3e}, probes {:.3e}, precompute {:.1} ms, solve {:.1} ms ({:.1} s)",
+            "{} {} {} L{}: {} DOFs, L2 {:.3e}, opening {:.3e}, probes {:.3e}, Π {:.6e} J, precompute {:.1} ms, solve {:.1} ms ({:.1} s)",
             row.case,
             row.variant,
             row.element,
@@ -412,6 +424,7 @@ pub fn converge_case(
             row.l2,
             row.opening,
             row.probes,
+            row.energy,
             row.precompute * 1e3,
             row.solve * 1e3,
             wall
@@ -492,6 +505,24 @@ impl Front {
     }
 }
 
+/// Total potential energy Π = E_strain(d) − f·d of displacements `d`
+/// (corotational: the corotated strain energy).
+pub fn potential_energy(model: &Model, d: &[f64]) -> f64 {
+    let strain = evaluate(
+        model,
+        d,
+        &mut Rotations::identity(model),
+        &mut Workspace::new(model),
+        Request {
+            forces: None,
+            tangent: None,
+            update_rotations: model.formulation == Formulation::Corotational,
+            exact_tangent: false,
+        },
+    );
+    strain - model.load.iter().zip(d).map(|(f, u)| f * u).sum::<f64>()
+}
+
 /// Offset from the cut plane at which each side is read (m): far beyond the
 /// locator's tolerance, far below any element size.
 const SIDE_OFFSET: f64 = 1e-8;
@@ -534,12 +565,16 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("c.csv");
         let text = format!(
-            "{CSV_HEADER}\ngravity,X-FEM unstructured,tet10,2,3e-3,100,300,1e-2,2e-2,5e-3,4e-2,6e-3\ngravity,FEM pre-cut,tet4,0,3e-3,100,300,1e-2,2e-2,5e-3\n"
+            "{CSV_HEADER}\ngravity,X-FEM unstructured,tet10,2,3e-3,100,300,1e-2,2e-2,5e-3,4e-2,6e-3,-2.5e-1\ngravity,FEM pre-cut,tet4,0,3e-3,100,300,1e-2,2e-2,5e-3\ngravity,FEM pre-cut,tet4,1,3e-3,100,300,1e-2,2e-2,5e-3,4e-2,6e-3\n"
         );
         std::fs::write(&p, &text).unwrap();
         let rows = read_csv(&p).unwrap();
-        assert_eq!((rows[0].opening, rows[0].probes), (4e-2, 6e-3));
-        assert!(rows[1].opening.is_nan() && rows[1].probes.is_nan());
+        assert_eq!(
+            (rows[0].opening, rows[0].probes, rows[0].energy),
+            (4e-2, 6e-3, -0.25)
+        );
+        assert!(rows[1].opening.is_nan() && rows[1].probes.is_nan() && rows[1].energy.is_nan());
+        assert_eq!((rows[2].probes, rows[2].energy.is_nan()), (6e-3, true));
         write_csv(&p, &rows[..1]).unwrap();
         let written = std::fs::read_to_string(&p).unwrap();
         assert_eq!(
@@ -573,6 +608,46 @@ mod tests {
         assert_eq!(
             std::fs::read_to_string(dir.path().join("stress.csv")).unwrap(),
             std::fs::read_to_string(data.join("stress.csv")).unwrap()
+        );
+    }
+
+    /// Π is stationary at the solution and there −½ f·u (loads only, no
+    /// prescribed motion): the seed's gravity beam, its cut shortened so that
+    /// the front lies inside elements, tip-enriched.
+    #[test]
+    fn potential_energy_is_least_at_the_solution() {
+        let case = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/gravity.toml");
+        let text = std::fs::read_to_string(&case).unwrap();
+        let scene = Scene::parse(&text.replace("u = [0.015,", "u = [0.0137,"), &case).unwrap();
+        let r = solve_scene(&scene, 0, None, false).unwrap();
+        let (m, d) = (&r.model, &r.d);
+        assert!(m.cut.as_ref().unwrap().n_tip() > 0);
+        let pi = potential_energy(m, d);
+        let work: f64 = m.load.iter().zip(d).map(|(f, u)| f * u).sum();
+        assert!(
+            (pi + 0.5 * work).abs() < 1e-9 * work.abs(),
+            "Π {pi}, f·u {work}"
+        );
+        // A perturbation of every free DOF (enriched ones included).
+        let scale = d.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let v: Vec<f64> = (0..d.len())
+            .map(|i| {
+                if m.equation[i] == crate::model::NONE {
+                    0.0
+                } else {
+                    1e-3 * scale * (i as f64).sin()
+                }
+            })
+            .collect();
+        let at = |t: f64| {
+            let x: Vec<f64> = d.iter().zip(&v).map(|(a, b)| a + t * b).collect();
+            potential_energy(m, &x)
+        };
+        let (up, down) = (at(1.0) - pi, at(-1.0) - pi);
+        assert!(up > 0.0 && down > 0.0, "{up} {down}");
+        assert!(
+            (up - down).abs() < 1e-6 * up,
+            "first variation not zero: {up} {down}"
         );
     }
 

@@ -7,12 +7,13 @@
 //! the sign of our level set at the reference element's centroid, so a point
 //! on a crack face takes the side of the reference element it belongs to.
 
-use crate::element::shape_values;
+use crate::element::{barycentric_gradients, shape_gradients, shape_values};
 use crate::locate::Locator;
+use crate::material::Lame;
 use crate::mesh::TetMesh;
 use crate::model::Model;
 use crate::quadrature::DEGREE5;
-use nalgebra::{Point3, Vector3};
+use nalgebra::{Matrix3, Point3, Vector3};
 
 /// A displacement field: a mesh and one value per node (Tet4 or Tet10).
 pub struct Field<'a> {
@@ -30,6 +31,40 @@ impl Field<'_> {
             .iter()
             .enumerate()
             .fold(Vector3::zeros(), |s, (k, &i)| s + self.values[i] * n[k])
+    }
+
+    /// Gradient ∇u at barycentric point `l` of element `e` (zero on a
+    /// degenerate element).
+    pub fn gradient_at(&self, e: usize, l: &[f64; 4]) -> Matrix3<f64> {
+        let Some(dl) = barycentric_gradients(&self.mesh.vertex_points(e)) else {
+            return Matrix3::zeros();
+        };
+        let mut g = [Vector3::zeros(); 10];
+        shape_gradients(self.mesh.kind, l, &dl, &mut g);
+        self.mesh
+            .element(e)
+            .iter()
+            .enumerate()
+            .fold(Matrix3::zeros(), |s, (k, &i)| {
+                s + self.values[i] * g[k].transpose()
+            })
+    }
+
+    /// Linear strain energy ½∫ ε : σ of the field for a material with Lamé
+    /// parameters `lame` (degree 5 per element: exact for Tet4 and Tet10).
+    pub fn strain_energy(&self, lame: &Lame) -> f64 {
+        let mut energy = 0.0;
+        for e in 0..self.mesh.n_elements() {
+            let vol = self.mesh.volume(e).abs();
+            for q in &DEGREE5 {
+                let g = self.gradient_at(e, &q.bary);
+                let eps = (g + g.transpose()) * 0.5;
+                let density =
+                    0.5 * lame.lambda * eps.trace().powi(2) + lame.mu * eps.norm_squared();
+                energy += q.weight * vol * density;
+            }
+        }
+        energy
     }
 }
 
@@ -220,6 +255,41 @@ mod tests {
         assert!(
             (e.reference_norm.powi(2) - 1.0 / 3.0).abs() < 1e-14,
             "{e:?}"
+        );
+    }
+
+    /// ½∫ε:σ of u = (xy, z² − x, y/2) on the unit cube: λ/6 + 43μ/24 in closed
+    /// form, from the reference field and from the model's own assembly.
+    #[test]
+    fn strain_energy_of_a_quadratic_field_is_exact() {
+        let quad = |p: &Point3<f64>| Vector3::new(p.x * p.y, p.z * p.z - p.x, 0.5 * p.y);
+        let mesh = box_mesh(Point3::origin(), Point3::new(1.0, 1.0, 1.0), [2, 3, 2]).to_tet10();
+        let values: Vec<Vector3<f64>> = mesh.nodes.iter().map(quad).collect();
+        let model = model_of(mesh.clone());
+        let lame = model.lame;
+        let exact = lame.lambda / 6.0 + 43.0 * lame.mu / 24.0;
+        let field = Field {
+            mesh: &mesh,
+            values: &values,
+        };
+        let e = field.strain_energy(&lame);
+        assert!((e - exact).abs() < 1e-13 * exact, "{e} against {exact}");
+        let d: Vec<f64> = values.iter().flat_map(|u| [u.x, u.y, u.z]).collect();
+        let from_model = crate::assembly::evaluate(
+            &model,
+            &d,
+            &mut crate::assembly::Rotations::identity(&model),
+            &mut crate::assembly::Workspace::new(&model),
+            crate::assembly::Request {
+                forces: None,
+                tangent: None,
+                update_rotations: false,
+                exact_tangent: false,
+            },
+        );
+        assert!(
+            (from_model - exact).abs() < 1e-13 * exact,
+            "{from_model} against {exact}"
         );
     }
 }
