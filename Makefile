@@ -3,7 +3,7 @@ SHELL := /bin/bash
 CARGO ?= $(shell command -v cargo || echo $$HOME/.cargo/bin/cargo)
 NP ?= 1
 
-.PHONY: all build test fuzz report bench bench-report rust refs-env refs refs-test clean
+.PHONY: all build test fuzz report bench bench-report bench-static rust refs-env refs refs-test clean
 
 all: build
 
@@ -38,9 +38,11 @@ STRESS_CSV := reports/data/stress.csv
 # Code verification (exact solutions, no references needed): re-run when the binary changed;
 # `converge --exact` itself skips a run whose inputs hash (binary + variants) is unchanged.
 EXACT_CSV := reports/data/exact.csv
+# A blade sweeping the seed's cut: step time against simulated time, events marked (a second).
+SWEEP_CSV := reports/data/sweep_series.csv
 
 # The main job: references, the convergence study, the benches, the report.
-report: build $(if $(wildcard refs/refs.mk),refs) $(CONVERGE_CSV) $(CONVERGE_COROT_CSV) $(EXACT_CSV) $(STRESS_CSV) bench-report $(if $(wildcard refs/refs.mk),pictures)
+report: build $(if $(wildcard refs/refs.mk),refs) $(CONVERGE_CSV) $(CONVERGE_COROT_CSV) $(EXACT_CSV) $(STRESS_CSV) $(SWEEP_CSV) bench-report $(if $(wildcard refs/refs.mk),pictures)
 	$(CARGO) run --release -- report
 
 # Re-run the study when the solver, a case or a reference changed.
@@ -60,8 +62,16 @@ $(STRESS_CSV): target/release/xfem-cut
 	@mkdir -p $(dir $@)
 	$(CARGO) run --release -- stress --csv $@ || echo "stress: a test failed; the report shows which"
 
+$(SWEEP_CSV): target/release/xfem-cut examples/sweep_series.rs
+	$(CARGO) run --release --example sweep_series -- --out reports
+
 bench-report: build
 	$(CARGO) bench --bench step --bench cut -- --warm-up-time 1 --measurement-time 3
+
+# Static solves against FEniCSx at equal cores, 13k–376k DOFs (tens of minutes, and it wants a
+# quiet machine): the report's "Static solve against FEniCSx" section, run apart from `make report`.
+bench-static: build refs-env
+	cd refs && $(REFS_PY) bench_static.py
 
 clean:
 	rm -rf target out
