@@ -184,6 +184,9 @@ pub struct Model {
     /// Per node (Tet10 with tip enrichment only, else empty): the vertices of
     /// the edge a mid-node sits on when one of them is tip-enriched.
     pub mid_edge: Vec<Option<[u32; 2]>>,
+    /// The boundary tractions (kept so that a cut event can integrate the
+    /// enriched shape functions of the faces it changes again).
+    pub tractions: Vec<Traction>,
 }
 
 impl Model {
@@ -270,10 +273,15 @@ impl Model {
                 masses.push(block.mass);
             }
         }
+        let mut fixed = fixed;
+        if let Some(c) = cut.as_ref() {
+            let enriched = enriched_fixes(mesh.n_nodes(), c, &fixed);
+            fixed.extend(enriched);
+        }
         let (equation, prescribed, n_free) = number_dofs(n_shape, &fixed);
         let (pattern, scatter) = pattern_and_scatter(&flat, &equation, n_free);
-        // Boundary tractions: ∫ t φ_a over the selected faces (standard shapes only;
-        // faces are of the uncut body).
+        // Boundary tractions: ∫ t φ_a over the selected faces, standard shapes
+        // here, the enriched ones once the model is built.
         for t in tractions {
             add_traction(&mesh, t, &mut globals.load);
         }
@@ -285,7 +293,7 @@ impl Model {
             values
         });
         let mid_edge = mid_edges(&mesh, cut.as_ref());
-        Ok(Model {
+        let mut model = Model {
             lame: Lame::from(material),
             mesh,
             material,
@@ -312,7 +320,61 @@ impl Model {
             lumped_coupling: globals.coupling,
             consistent_mass,
             mid_edge,
-        })
+            tractions: tractions.to_vec(),
+        };
+        let mut load = std::mem::take(&mut model.load);
+        for t in tractions {
+            for face in &t.faces {
+                model.add_enriched_traction(face, &t.value, 1.0, None, &mut load);
+            }
+        }
+        model.load = load;
+        Ok(model)
+    }
+
+    /// Adds `sign` ∫ t ψ_s dA over boundary face `face` (its corner nodes
+    /// and its element) for each enriched shape function ψ_s of the element
+    /// (the standard ones: [`add_traction`]) to `load`, at shape id
+    /// `map[s]` with a map (dropped where [`NONE`]).
+    ///
+    /// The face is split where the element's φ changes sign (a Heaviside or
+    /// branch function jumps there) and each side's piece, cut into 16
+    /// triangles, takes a 7-point degree-5 rule: the branch functions are
+    /// smooth on each side, √r at the front.
+    fn add_enriched_traction(
+        &self,
+        face: &([usize; 3], usize),
+        value: &Vector3<f64>,
+        sign: f64,
+        map: Option<&[u32]>,
+        load: &mut [f64],
+    ) {
+        let (tri, e) = *face;
+        let nn = self.mesh.kind.nodes();
+        let ev = self.element_evaluator(e);
+        if ev.len() <= nn {
+            return;
+        }
+        let ids = self.element_shapes(e);
+        let (mut vals, mut grads) = (vec![0.0; ev.len()], vec![Vector3::zeros(); ev.len()]);
+        let corners = tri.map(|i| self.mesh.nodes[i]);
+        for side in [1i8, -1] {
+            for piece in clip_triangle(&corners, |x| f64::from(side) * ev.phi_at(x), side == 1) {
+                for (x, w) in triangle_points(&piece) {
+                    ev.eval(&x, side, &mut vals, &mut grads);
+                    for (a, &id) in ids.iter().enumerate().skip(nn) {
+                        let id = match map {
+                            Some(m) if m[id as usize] == NONE => continue,
+                            Some(m) => m[id as usize] as usize,
+                            None => id as usize,
+                        };
+                        for c in 0..3 {
+                            load[3 * id + c] += sign * w * value[c] * vals[a];
+                        }
+                    }
+                }
+            }
+        }
     }
 
     /// Displacement of node `i` seen from side `side` of the cut (0: no cut):
@@ -555,6 +617,15 @@ impl ElementEvaluator {
 
     pub fn is_empty(&self) -> bool {
         self.len == 0
+    }
+
+    /// The level set φ at reference point `x` (interpolated from the
+    /// element's vertices; 0 without a cut).
+    pub fn phi_at(&self, x: &Point3<f64>) -> f64 {
+        let bary = crate::mesh::barycentric(&self.verts, x).unwrap_or([0.25; 4]);
+        self.shapes
+            .as_ref()
+            .map_or(0.0, |s| (0..4).map(|k| s.phi[k] * bary[k]).sum())
     }
 
     /// Values and gradients of the shape functions at reference point `x`,
@@ -899,6 +970,81 @@ fn add_traction(mesh: &TetMesh, t: &Traction, load: &mut [f64]) {
             }
         }
     }
+}
+
+/// The part of triangle `p` where `f ≥ 0` (`f` linear on it), as 0–2
+/// triangles; where `f` vanishes on the whole triangle, all of it with
+/// `keep_zero`, else nothing (so that the two sides do not both take it).
+fn clip_triangle(
+    p: &[Point3<f64>; 3],
+    f: impl Fn(&Point3<f64>) -> f64,
+    keep_zero: bool,
+) -> Vec<[Point3<f64>; 3]> {
+    let v = p.map(|x| f(&x));
+    if v.iter().all(|&x| x == 0.0) {
+        return if keep_zero { vec![*p] } else { Vec::new() };
+    }
+    let mut poly: Vec<Point3<f64>> = Vec::with_capacity(4);
+    for k in 0..3 {
+        let (a, b) = (k, (k + 1) % 3);
+        if v[a] >= 0.0 {
+            poly.push(p[a]);
+        }
+        if (v[a] > 0.0 && v[b] < 0.0) || (v[a] < 0.0 && v[b] > 0.0) {
+            let t = v[a] / (v[a] - v[b]);
+            poly.push(p[a] + (p[b] - p[a]) * t);
+        }
+    }
+    (1..poly.len().saturating_sub(1))
+        .map(|k| [poly[0], poly[k], poly[k + 1]])
+        .filter(|t| (t[1] - t[0]).cross(&(t[2] - t[0])).norm() > 0.0)
+        .collect()
+}
+
+/// Quadrature points (position, weight) of triangle `p`: 16 similar
+/// triangles, each with the 7-point degree-5 rule (Dunavant).
+fn triangle_points(p: &[Point3<f64>; 3]) -> Vec<(Point3<f64>, f64)> {
+    const RULE: [(f64, f64, f64); 3] = [
+        (1.0 / 3.0, 1.0 / 3.0, 0.225),
+        (
+            0.059_715_871_789_770,
+            0.470_142_064_105_115,
+            0.132_394_152_788_506,
+        ),
+        (
+            0.797_426_985_353_087,
+            0.101_286_507_323_456,
+            0.125_939_180_544_827,
+        ),
+    ];
+    const N: usize = 4;
+    let area = 0.5 * (p[1] - p[0]).cross(&(p[2] - p[0])).norm() / (N * N) as f64;
+    let at = |s: f64, t: f64| p[0] + (p[1] - p[0]) * s + (p[2] - p[0]) * t;
+    let mut out = Vec::with_capacity(7 * N * N);
+    let h = 1.0 / N as f64;
+    for i in 0..N {
+        for j in 0..N - i {
+            // The upright sub-triangle (i, j) and, where it fits, the inverted one.
+            let up = [(i, j), (i + 1, j), (i, j + 1)];
+            let down = [(i + 1, j), (i + 1, j + 1), (i, j + 1)];
+            let cells: &[[(usize, usize); 3]] = if i + j + 1 < N { &[up, down] } else { &[up] };
+            for cell in cells {
+                let q = cell.map(|(a, b)| (a as f64 * h, b as f64 * h));
+                for &(a, b, w) in &RULE {
+                    let c = 1.0 - a - b;
+                    for (l0, l1, l2) in [(a, b, c), (b, c, a), (c, a, b)] {
+                        let s = l0 * q[0].0 + l1 * q[1].0 + l2 * q[2].0;
+                        let t = l0 * q[0].1 + l1 * q[1].1 + l2 * q[2].1;
+                        out.push((at(s, t), w * area));
+                        if a == b {
+                            break; // the centroid: once
+                        }
+                    }
+                }
+            }
+        }
+    }
+    out
 }
 
 // ---------------------------------------------------------------------------
@@ -1535,6 +1681,39 @@ impl Globals {
 }
 
 /// Step 3: global DOF → equation number, prescribed DOFs eliminated ([`NONE`]).
+/// The enriched shape functions of a node, by kind: its Heaviside one and
+/// its [`N_BRANCH`] branch functions (shape ids as [`Model::build`] numbers them).
+fn enriched_shapes_of(n_nodes: usize, cut: &CutSetup, node: usize) -> impl Iterator<Item = usize> {
+    let heaviside = cut.enriched[node].map(|j| n_nodes + j);
+    let tip = cut.tip.get(node).copied().flatten();
+    let first = tip.map(|t| n_nodes + cut.n_enriched + N_BRANCH * t);
+    heaviside
+        .into_iter()
+        .chain(first.into_iter().flat_map(|f| f..f + N_BRANCH))
+}
+
+/// Enriched DOFs prescribed to zero wherever their node's component is
+/// prescribed: the enrichment must vanish on a Dirichlet boundary, or the
+/// body moves between its fixed nodes (a cut reaching a clamped face would
+/// open there, and test functions that do not vanish on the boundary make
+/// the discrete problem another one: the linear field no longer solves the
+/// patch test with a cut crossing a symmetry plane). With shifted
+/// enrichment the node's displacement is then its standard DOFs' on every
+/// side, the prescribed value. Entries for enriched shapes of `fixed` pass
+/// through [`number_dofs`] unchanged (the first entry of a DOF wins).
+fn enriched_fixes(
+    n_nodes: usize,
+    cut: &CutSetup,
+    fixed: &[(usize, [Option<f64>; 3])],
+) -> Vec<(usize, [Option<f64>; 3])> {
+    let mut out = Vec::new();
+    for &(node, comps) in fixed.iter().filter(|(n, _)| *n < n_nodes) {
+        let zero = comps.map(|v| v.map(|_| 0.0));
+        out.extend(enriched_shapes_of(n_nodes, cut, node).map(|s| (s, zero)));
+    }
+    out
+}
+
 fn number_dofs(
     n_shape: usize,
     fixed: &[(usize, [Option<f64>; 3])],
@@ -2136,6 +2315,27 @@ impl Model {
             }
         }
         stats.dropped_equations = self.n_free - n_free as usize;
+        // The node of each new shape function, for the fixes of new enriched ones.
+        let mut node_of = vec![NONE; n_shape];
+        if let Some(c) = cut.as_ref() {
+            for i in 0..n_nodes {
+                for s in enriched_shapes_of(n_nodes, c, i) {
+                    node_of[s] = i as u32;
+                }
+            }
+        }
+        // Old prescribed DOFs on their new shape ids (an enriched one may be gone).
+        let mut prescribed: Vec<Prescribed> = self
+            .prescribed
+            .iter()
+            .filter_map(|p| {
+                let sn = map[p.dof / 3];
+                (sn != NONE).then(|| Prescribed {
+                    dof: 3 * sn as usize + p.dof % 3,
+                    value: p.value,
+                })
+            })
+            .collect();
         let mut equation = vec![NONE; 3 * n_shape];
         for (sn, &so) in old_of_new.iter().enumerate() {
             if so != NONE {
@@ -2146,10 +2346,19 @@ impl Model {
                     }
                 }
             } else {
-                // A new shape function (enriched: never prescribed).
+                // A new shape function (enriched): prescribed to zero where its
+                // node's component is ([`enriched_fixes`]), else a new equation.
+                let node = node_of[sn];
                 for c in 0..3 {
-                    equation[3 * sn + c] = n_free;
-                    n_free += 1;
+                    if node != NONE && self.equation[3 * node as usize + c] == NONE {
+                        prescribed.push(Prescribed {
+                            dof: 3 * sn + c,
+                            value: 0.0,
+                        });
+                    } else {
+                        equation[3 * sn + c] = n_free;
+                        n_free += 1;
+                    }
                 }
             }
         }
@@ -2296,7 +2505,7 @@ impl Model {
             group_element: flat.group_element,
             equation,
             n_free,
-            prescribed: self.prescribed.clone(),
+            prescribed,
             pattern,
             scatter,
             load: globals.load,
@@ -2304,7 +2513,25 @@ impl Model {
             lumped_coupling: globals.coupling,
             consistent_mass,
             mid_edge,
+            tractions: self.tractions.clone(),
         };
+        let mut model = model;
+        if !self.tractions.is_empty() {
+            // The enriched traction loads of the changed elements' faces: the
+            // old ones out (on the new shape ids), the new ones in.
+            let mut is_changed = vec![false; mesh.n_elements()];
+            for (e, _) in &changed {
+                is_changed[*e] = true;
+            }
+            let mut load = std::mem::take(&mut model.load);
+            for t in &self.tractions {
+                for face in t.faces.iter().filter(|f| is_changed[f.1]) {
+                    self.add_enriched_traction(face, &t.value, -1.0, Some(&map), &mut load);
+                    model.add_enriched_traction(face, &t.value, 1.0, None, &mut load);
+                }
+            }
+            model.load = load;
+        }
         let update = CutUpdate {
             changed: changed.iter().map(|(e, _)| *e).collect(),
             position,
