@@ -27,7 +27,7 @@ fuzz: rust
 	XFEM_FUZZ_COUNT=$(FUZZ_COUNT) $(CARGO) test --release --test fuzz -- --nocapture
 
 bench: build
-	$(CARGO) bench --bench step --bench cut
+	$(CARGO) bench --bench step --bench cut --bench blade
 
 REPORT_CASES := gravity stretch bend stretch_face bend_face slice
 CONVERGE_CSV := reports/data/convergence.csv
@@ -66,7 +66,7 @@ $(SWEEP_CSV): target/release/xfem-cut examples/sweep_series.rs
 	$(CARGO) run --release --example sweep_series -- --out reports
 
 bench-report: build
-	$(CARGO) bench --bench step --bench cut -- --warm-up-time 1 --measurement-time 3
+	$(CARGO) bench --bench step --bench cut --bench blade -- --warm-up-time 1 --measurement-time 3
 
 # Static solves against FEniCSx at equal cores, 13k–376k DOFs (tens of minutes, and it wants a
 # quiet machine): the report's "Static solve against FEniCSx" section, run apart from `make report`.
