@@ -159,7 +159,7 @@ fn against_remeshing(s: &Series<'_>, q: Option<&ReferenceQuality>) -> String {
             continue;
         };
         if md.is_empty() {
-            md.push_str("\nX-FEM on the unstructured uncut meshes against remeshed FEM (the pre-cut meshes) at the same number of free DOFs (FEM's error interpolated log–log between its levels; below its coarsest level, that level's; up to 1.25× its finest level's DOFs, extrapolated along its last two levels): \"lower\"/\"higher\" where the difference exceeds the reference's own L2 error, else \"unresolved\".\n\n| variant | element | level | DOFs | L2 error | FEM at these DOFs | ratio | verdict |\n| --- | --- | --- | --- | --- | --- | --- | --- |\n");
+            md.push_str("\nX-FEM on the unstructured uncut meshes against remeshed FEM (the pre-cut meshes) at the same number of free DOFs (FEM's error interpolated log–log between its levels; below its coarsest level, that level's; up to 1.25× its finest level's DOFs, extrapolated along its last two levels): \"lower\"/\"higher\" where the difference exceeds the reference's own L2 error, else \"unresolved\". In energy, with no reference: Π − Π_FEM against FEM at the same level (its DOFs in brackets); negative is the more accurate in energy (not for the extended front, a longer cut).\n\n| variant | element | level | DOFs | L2 error | FEM at these DOFs | ratio | verdict | Π − Π_FEM (J) |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
         }
         for r in rows {
             let f = fem_error_at(fem, r.dofs);
@@ -169,9 +169,15 @@ fn against_remeshing(s: &Series<'_>, q: Option<&ReferenceQuality>) -> String {
                 Verdict::Unresolved => "unresolved",
                 Verdict::NoFem => "– (beyond FEM's finest level)",
             };
+            let energy = fem
+                .iter()
+                .find(|f| f.level == r.level && f.energy.is_finite() && r.energy.is_finite())
+                .map_or("–".into(), |f| {
+                    format!("{:+.3e} ({} DOFs)", r.energy - f.energy, f.dofs)
+                });
             let _ = writeln!(
                 md,
-                "| {variant} | {element} | {} | {} | {:.3e} | {} | {} | {v} |",
+                "| {variant} | {element} | {} | {} | {:.3e} | {} | {} | {v} | {energy} |",
                 r.level,
                 r.dofs,
                 r.l2,
