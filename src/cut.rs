@@ -239,7 +239,7 @@ impl CutSetup {
 
 #[derive(Debug, thiserror::Error)]
 pub enum CutError {
-    #[error("cut[{0}] misses the body: no element is cut and no node lies on it")]
+    #[error("cut[{0}] cuts nothing: it splits no element and enriches no node (it misses the body, lies on its boundary, or is smaller than the elements it lies in)")]
     Misses(usize),
     #[error("cut[{0}] is degenerate: u × v = 0 or not finite")]
     Degenerate(usize),
