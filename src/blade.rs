@@ -672,6 +672,14 @@ pub fn map_state(old: &Model, new: &Model, state: &State) -> State {
 pub fn map_state_reported(old: &Model, new: &Model, state: &State) -> (State, Option<Projection>) {
     let mut mapped = map_state_unprojected(old, new, state);
     let report = project_tip_change(old, new, state, &mut mapped);
+    // Enriched DOFs prescribed at a fixed node hold zero (a fit may have set
+    // the prescribed components of a partly fixed shape function).
+    let first_enriched = 3 * new.mesh.n_nodes();
+    for p in new.prescribed.iter().filter(|p| p.dof >= first_enriched) {
+        mapped.d[p.dof] = p.value;
+        mapped.v[p.dof] = 0.0;
+        mapped.a[p.dof] = 0.0;
+    }
     (mapped, report)
 }
 
@@ -746,14 +754,22 @@ pub fn project_tip_change(
     let n_nodes = new.mesh.n_nodes();
     let mut slot = vec![usize::MAX; new.n_shape];
     let mut fitted = Vec::new();
+    // A shape function whose three components are prescribed (an enriched
+    // one of a fixed node: zero) takes no part in the fit.
+    let held = |s: usize| (0..3).all(|c| new.equation[3 * s + c] == crate::model::NONE);
     for i in 0..n_nodes {
         if let Some(t) = nc.tip.get(i).copied().flatten() {
             for b in 0..crate::front::N_BRANCH {
-                fitted.push(n_nodes + nc.n_enriched + crate::front::N_BRANCH * t + b);
+                let s = n_nodes + nc.n_enriched + crate::front::N_BRANCH * t + b;
+                if !held(s) {
+                    fitted.push(s);
+                }
             }
         }
         if let (Some(j), Some(_)) = (nc.enriched[i], oc.tip.get(i).copied().flatten()) {
-            fitted.push(n_nodes + j);
+            if !held(n_nodes + j) {
+                fitted.push(n_nodes + j);
+            }
         }
     }
     if fitted.is_empty() {
