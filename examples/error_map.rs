@@ -13,13 +13,13 @@
 use nalgebra::{Point3, Vector3};
 use std::path::Path;
 use xfem_cut::locate::Locator;
-use xfem_cut::mesh::{barycentric, ElementKind};
+use xfem_cut::mesh::ElementKind;
 use xfem_cut::quadrature::DEGREE5;
 use xfem_cut::run::solve_scene;
 use xfem_cut::scene::{FrontMode, Scene};
 use xfem_cut::study::converge::{potential_energy, reference_of, GEOMETRIC_TIP_RADIUS};
 use xfem_cut::study::reference::{out_dir, read_reference};
-use xfem_cut::study::verify::Field;
+use xfem_cut::study::verify::{side_of, Field};
 
 const SLABS: usize = 10;
 
@@ -63,21 +63,7 @@ fn main() {
         let (e, l) = locator
             .locate(&model.mesh, x)
             .expect("point outside our mesh");
-        let side = model.cut.as_ref().map_or(0, |c| {
-            let at = barycentric(&model.mesh.vertex_points(e), centroid).unwrap_or(l);
-            let phi: f64 = model
-                .mesh
-                .vertices(e)
-                .iter()
-                .zip(at)
-                .map(|(&i, l)| c.phi[i] * l)
-                .sum();
-            if phi >= 0.0 {
-                1
-            } else {
-                -1
-            }
-        });
+        let side = side_of(model, e, centroid, l);
         model.displacement_at(&result.d, e, x, side)
     };
     let rmesh = &reference.mesh;

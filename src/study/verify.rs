@@ -88,6 +88,29 @@ pub struct L2Error {
     pub relative: f64,
 }
 
+/// The side of the cut a reference element with centroid `centroid` lies
+/// on, seen from our element `e` (`fallback`: barycentric coordinates to use
+/// where the centroid's cannot be computed): the sign of our level set
+/// interpolated there (planar in an element: exact); 0 without a cut.
+pub fn side_of(model: &Model, e: usize, centroid: &Point3<f64>, fallback: [f64; 4]) -> i8 {
+    let Some(c) = &model.cut else {
+        return 0;
+    };
+    let at = crate::mesh::barycentric(&model.mesh.vertex_points(e), centroid).unwrap_or(fallback);
+    let phi: f64 = model
+        .mesh
+        .vertices(e)
+        .iter()
+        .zip(at)
+        .map(|(&i, l)| c.phi[i] * l)
+        .sum();
+    if phi >= 0.0 {
+        1
+    } else {
+        -1
+    }
+}
+
 /// L2 error of our solution `d` on `model` against `reference`.
 pub fn l2_error(
     reference: &Field<'_>,
@@ -118,21 +141,7 @@ pub fn l2_error(
                 missed += 1;
                 continue;
             };
-            let side = match &model.cut {
-                Some(c) => {
-                    // Level set at the reference centroid, from our element's nodal values (planar: exact).
-                    let v = model.mesh.vertices(oe);
-                    let pc = crate::mesh::barycentric(&model.mesh.vertex_points(oe), &centroid)
-                        .unwrap_or(ob);
-                    let phi: f64 = v.iter().zip(pc).map(|(&i, l)| c.phi[i] * l).sum();
-                    if phi >= 0.0 {
-                        1
-                    } else {
-                        -1
-                    }
-                }
-                None => 0,
-            };
+            let side = side_of(model, oe, &centroid, ob);
             let u_h = model.displacement_at(d, oe, &x, side);
             err2 += q.weight * vol * (u_ref - u_h).norm_squared();
             norm2 += q.weight * vol * u_ref.norm_squared();
