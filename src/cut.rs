@@ -6,7 +6,10 @@
 //! - Λ at every node (Tet10 mid-nodes too) is the signed distance to the
 //!   surface's plane (eq. 72–73), > 0 on the side the normal u × v points to.
 //!   Nodes closer than `snap` × (their smallest element size) lie on the cut
-//!   (Λ = 0), so no sub-tet thinner than that is created.
+//!   (Λ = 0), so no sub-tet thinner than that is created. With a tip front,
+//!   the nodes of a face in the surface that the front crosses are moved
+//!   `snap` · h off it instead ([`lift_faces_the_front_crosses`]), so the
+//!   cut ends inside the elements beside the face where it is given.
 //! - An element is *crossed* when its vertices have Λ of both strict signs
 //!   (the eight cases of seed figure 6, zeros included). A crossed element is
 //!   [`ElementCut::Cut`] when its plane section overlaps the patch, `partial`
@@ -448,6 +451,59 @@ fn merge(mesh: &TetMesh, setups: Vec<CutSetup>) -> Result<CutSetup, CutError> {
     })
 }
 
+/// A face lying in the surface (φ = 0 at its three vertices, on a node
+/// layer or snapped onto it) that the front crosses (ψ of both strict signs
+/// at its vertices) could only be cut whole or not at all: the cut would end
+/// at a node line up to an element away from where it is given. Its nodes
+/// (Tet10: the mid-nodes of the edges in the surface from them too) are moved `snap` · h off the
+/// surface, on the side they came from (exactly on it: the + side; `snap` =
+/// 0: [`DEFAULT_SNAP`]), so the elements on the other side are crossed, a
+/// sliver of them cut, and the front passes through them as through any
+/// front element. Faces the front does not cross stay in the surface (a cut
+/// along a node layer opens the mesh's faces exactly).
+fn lift_faces_the_front_crosses(
+    mesh: &TetMesh,
+    phi: &mut [f64],
+    front_level: &[f64],
+    below: &[bool],
+    h: &[f64],
+    snap: f64,
+) {
+    let mut lift = vec![false; phi.len()];
+    for e in 0..mesh.n_elements() {
+        let v = mesh.vertices(e);
+        for face in TET_FACES {
+            let tri = face.map(|k| v[k]);
+            if tri.iter().any(|&j| phi[j] != 0.0) {
+                continue;
+            }
+            let g = tri.map(|j| front_level[j]);
+            if g.iter().any(|&x| x < 0.0) && g.iter().any(|&x| x > 0.0) {
+                for j in tri {
+                    lift[j] = true;
+                }
+            }
+        }
+    }
+    if mesh.kind == crate::mesh::ElementKind::Tet10 {
+        for e in 0..mesh.n_elements() {
+            let nodes = mesh.element(e);
+            for (k, &(a, b)) in crate::mesh::TET10_EDGES.iter().enumerate() {
+                let in_surface = [nodes[a], nodes[b], nodes[4 + k]]
+                    .iter()
+                    .all(|&j| phi[j] == 0.0);
+                if in_surface && (lift[nodes[a]] || lift[nodes[b]]) {
+                    lift[nodes[4 + k]] = true;
+                }
+            }
+        }
+    }
+    let distance = if snap > 0.0 { snap } else { DEFAULT_SNAP };
+    for (i, _) in lift.iter().enumerate().filter(|(_, &l)| l) {
+        phi[i] = if below[i] { -distance } else { distance } * h[i];
+    }
+}
+
 /// The set-up of one cut (`index` in the scene, for errors).
 fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSetup, CutError> {
     let (surface, snap) = (input.surface, input.snap);
@@ -483,6 +539,8 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
             .collect(),
         None => Vec::new(),
     };
+    // The sides of the nodes that snapping puts on the surface.
+    let below: Vec<bool> = phi.iter().map(|&p| p < 0.0).collect();
     for (p, hi) in phi.iter_mut().zip(&h) {
         if p.abs() < snap * hi {
             *p = 0.0;
@@ -492,6 +550,9 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
         if p.abs() < snap * hi {
             *p = 0.0;
         }
+    }
+    if front.is_some() {
+        lift_faces_the_front_crosses(mesh, &mut phi, &front_level, &below, &h, snap);
     }
     let mut front_element = vec![false; mesh.n_elements()];
     let node_side: Vec<i8> = phi.iter().map(|&p| if p >= 0.0 { 1 } else { -1 }).collect();
