@@ -8,7 +8,7 @@
 //!   Nodes closer than `snap` × (their smallest element size) lie on the cut
 //!   (Λ = 0), so no sub-tet thinner than that is created. With a tip front,
 //!   the nodes of a face in the surface that the front crosses are moved
-//!   `snap` · h off it instead ([`lift_faces_the_front_crosses`]), so the
+//!   `snap` · h off it instead (`lift_faces_the_front_crosses`), so the
 //!   cut ends inside the elements beside the face where it is given.
 //! - An element is *crossed* when its vertices have Λ of both strict signs
 //!   (the eight cases of seed figure 6, zeros included). A crossed element is
