@@ -303,8 +303,8 @@ impl CutSurface for GrowingPatch {
         self.full.level_set(x)
     }
 
-    fn overlaps(&self, poly: &[Point3<f64>]) -> bool {
-        self.part.overlaps(poly)
+    fn overlaps(&self, poly: &[Point3<f64>], reach: f64) -> bool {
+        self.part.overlaps(poly, reach)
     }
 
     fn contains(&self, x: &Point3<f64>, tol: f64) -> bool {

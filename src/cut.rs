@@ -47,8 +47,10 @@ pub struct PlanarPatch {
 pub trait CutSurface: Send + Sync {
     /// Signed distance Λ(x) to the supporting surface, eq. (72)–(73).
     fn level_set(&self, x: &Point3<f64>) -> f64;
-    /// Whether the convex section polygon `poly` (points on the surface) overlaps the patch.
-    fn overlaps(&self, poly: &[Point3<f64>]) -> bool;
+    /// Whether the convex section polygon `poly` overlaps the patch. Its
+    /// points lie on the interpolated, snapped surface: up to `reach` off
+    /// the surface itself.
+    fn overlaps(&self, poly: &[Point3<f64>], reach: f64) -> bool;
     /// Whether `x` (on the surface) lies in the patch, with relative tolerance `tol`.
     fn contains(&self, x: &Point3<f64>, tol: f64) -> bool;
     /// The surface's boundary as segments; the part inside the body is the crack front.
@@ -79,7 +81,7 @@ impl CutSurface for PlanarPatch {
         self.normal().dot(&(x - self.origin))
     }
 
-    fn overlaps(&self, poly: &[Point3<f64>]) -> bool {
+    fn overlaps(&self, poly: &[Point3<f64>], _reach: f64) -> bool {
         // Separating axes of two convex polygons in (s, t): the square's axes, then the polygon's edge normals.
         // Touching (overlap thinner than tol) does not count: a section that only
         // meets the crack front line is not cut.
@@ -539,8 +541,10 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
             .collect(),
         None => Vec::new(),
     };
-    // The sides of the nodes that snapping puts on the surface.
-    let below: Vec<bool> = phi.iter().map(|&p| p < 0.0).collect();
+    // The sides of the nodes that snapping puts on the surface; within
+    // round-off of it (a patch and the same patch as triangles differ
+    // there): the + side, as on it.
+    let below: Vec<bool> = phi.iter().zip(&h).map(|(&p, hi)| p < -1e-12 * hi).collect();
     for (p, hi) in phi.iter_mut().zip(&h) {
         if p.abs() < snap * hi {
             *p = 0.0;
@@ -574,7 +578,9 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
         }
         crossed[e] = true;
         let poly = section_polygon(&p, &f);
-        if !surface.overlaps(&poly) {
+        // Snapped or lifted nodes move the section up to a snap off the surface.
+        let reach = 2.0 * if snap > 0.0 { snap } else { DEFAULT_SNAP } * mesh.element_size(e);
+        if !surface.overlaps(&poly, reach) {
             elements.push(ElementCut::Uncut);
             continue;
         }

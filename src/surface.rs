@@ -318,7 +318,7 @@ impl CutSurface for TriangleSurface {
         }
     }
 
-    fn overlaps(&self, poly: &[Point3<f64>]) -> bool {
+    fn overlaps(&self, poly: &[Point3<f64>], reach: f64) -> bool {
         if poly.is_empty() {
             return false;
         }
@@ -327,7 +327,10 @@ impl CutSurface for TriangleSurface {
             lo = lo.inf(p);
             hi = hi.sup(p);
         }
-        let pad = (hi - lo).norm() + 1e-12 * (hi.coords.norm() + 1.0);
+        // Candidates within the polygon's size and its reach: a section of
+        // the interpolated, snapped level set can lie a snap off the
+        // triangles, more than a small polygon's size.
+        let pad = (hi - lo).norm() + reach + 1e-12 * (hi.coords.norm() + 1.0);
         self.near(lo, hi, pad).any(|tri| {
             let a = tri.p[0];
             let (e1, e2) = (tri.p[1] - a, tri.p[2] - a);
