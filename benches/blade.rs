@@ -18,6 +18,12 @@
 //!   solved by refactorisation or by [`BorderedSolve`] on the old factor),
 //!   and one solve of each.
 //!
+//! - Tip front (the default): `tip_event` (set-up, model update, state
+//!   mapped and projected, the step after it with symbolic and numeric
+//!   factorisation) and its costliest phases `tip_update`, `tip_map_state`
+//!   (linear only: the same for both formulations), beside `tip_step_sweep`
+//!   (a step on the tip-cut beam). `examples/tip_event.rs` splits it further.
+//!
 //! Short runs: `cargo bench --bench blade -- --warm-up-time 1 --measurement-time 3`.
 
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion};
@@ -269,6 +275,70 @@ fn benches(c: &mut Criterion) {
                     |(chol, state)| first_step(&updated, chol, state, opts),
                     BatchSize::LargeInput,
                 )
+            });
+        }
+    }
+    // A tip front (the default `front`): it moves with the blade, so every
+    // step of the sweep is an event, whose branch functions change on every
+    // element holding them (set-up, model update, the state projected by
+    // least squares, the step after it on a new factor).
+    for (size, div, tet10) in [
+        ("tet4_1k", [3, 6, 10], false),
+        ("tet4_10k", [6, 12, 24], false),
+        ("tet10_1k", [3, 6, 10], true),
+    ] {
+        let mesh = beam_mesh(div, tet10);
+        let cuts = CutSet {
+            front: xfem_cut::cut::FrontMode::Tip,
+            ..cuts()
+        };
+        let (t_a, t_b) = (0.5, 0.5 + opts.dt);
+        let setup_a = cuts.setup_at(&mesh, t_a).unwrap();
+        let setup_b = cuts.setup_at(&mesh, t_b).unwrap();
+        for formulation in [Formulation::Linear, Formulation::Corotational] {
+            let name = format!("{size}_{formulation:?}").to_lowercase();
+            // The model at t_a as a sweep has it: updated from the step before.
+            let before = model(
+                &mesh,
+                cuts.setup_at(&mesh, t_a - opts.dt).unwrap(),
+                formulation,
+            );
+            let model_a = before.update_cut(setup_a.clone()).unwrap().0;
+            let mut nm =
+                Newmark::new(&model_a, Cholesky::new(&model_a.pattern).unwrap(), opts).unwrap();
+            nm.initialise_acceleration().unwrap();
+            for _ in 0..3 {
+                nm.step().unwrap();
+            }
+            let state_a = nm.state.clone();
+            let (model_b, stats) = model_a.update_cut(setup_b.clone()).unwrap();
+            eprintln!(
+                "{name}, tip front: event at t = {t_b:.3}: {} of {} elements integrated again, {} → {} equations, {} tip nodes",
+                stats.changed_elements,
+                mesh.n_elements(),
+                model_a.n_free,
+                model_b.n_free,
+                model_b.cut.as_ref().map_or(0, |c| c.n_tip())
+            );
+            group.bench_function(BenchmarkId::new("tip_event", &name), |b| {
+                b.iter(|| {
+                    let s = cuts.setup_at(&mesh, t_b).unwrap();
+                    let (m, _) = model_a.update_cut(s).unwrap();
+                    let mapped = map_state(&model_a, &m, &state_a);
+                    first_step(&m, Cholesky::new(&m.pattern).unwrap(), mapped, opts);
+                })
+            });
+            // The phases, once (they do not depend on the formulation).
+            if formulation == Formulation::Linear {
+                group.bench_function(BenchmarkId::new("tip_update", &name), |b| {
+                    b.iter(|| black_box(model_a.update_cut(setup_b.clone()).unwrap()))
+                });
+                group.bench_function(BenchmarkId::new("tip_map_state", &name), |b| {
+                    b.iter(|| black_box(map_state(&model_a, &model_b, &state_a)))
+                });
+            }
+            group.bench_function(BenchmarkId::new("tip_step_sweep", &name), |b| {
+                b.iter(|| black_box(nm.step().unwrap()))
             });
         }
     }

@@ -38,6 +38,11 @@ pub fn polar_angle(phi: f64, psi: f64, side: i8) -> f64 {
 /// Values and gradients of F₁..₄ at a point where the (linear) level sets
 /// have values φ, ψ and gradients ∇φ, ∇ψ, on side `side`:
 /// ∇F = ∂F/∂r ∇r + ∂F/∂θ ∇θ, ∇r = (φ∇φ + ψ∇ψ)/r, ∇θ = (ψ∇φ − φ∇ψ)/r².
+/// θ as [`polar_angle`], its sines and cosines from φ/r and ψ/r (the half
+/// angles without cancellation: cos θ/2 = √((1 + cos θ)/2) where cos θ ≥ 0,
+/// sin θ/2 = sin θ / (2 cos θ/2); the other way round where cos θ < 0):
+/// no atan2, sine or cosine per point, [`branch_values`] ∘ [`polar_angle`]
+/// to round-off (test below).
 pub fn branch_with_gradients(
     phi: f64,
     psi: f64,
@@ -45,17 +50,37 @@ pub fn branch_with_gradients(
     grad_psi: &Vector3<f64>,
     side: i8,
 ) -> ([f64; N_BRANCH], [Vector3<f64>; N_BRANCH]) {
-    let theta = polar_angle(phi, psi, side);
-    let r = phi.hypot(psi);
-    let values = branch_values(r, theta);
+    let r = (phi * phi + psi * psi).sqrt();
     if r == 0.0 {
-        return (values, [Vector3::zeros(); N_BRANCH]);
+        return ([0.0; N_BRANCH], [Vector3::zeros(); N_BRANCH]);
     }
+    // θ from φ on the side's half plane (φ of the wrong sign, round-off on
+    // a cut face, is 0 of that side); r from φ as it is.
+    let on_side = match side {
+        1 if phi > 0.0 => phi,
+        1 => 0.0,
+        -1 if phi < 0.0 => phi,
+        -1 => -0.0,
+        _ => phi,
+    };
+    let r_side = (on_side * on_side + psi * psi).sqrt();
+    let (st, ct) = if r_side > 0.0 {
+        (on_side / r_side, psi / r_side)
+    } else {
+        (0.0, 1.0)
+    };
+    // θ/2 ∈ [−π/2, π/2]: cos θ/2 ≥ 0, sin θ/2 of θ's sign (φ's, −0 included).
+    let (s2, c2) = if ct >= 0.0 {
+        let c2 = (0.5 * (1.0 + ct)).sqrt();
+        (0.5 * st / c2, c2)
+    } else {
+        let s2 = (0.5 * (1.0 - ct)).sqrt().copysign(on_side);
+        (s2, 0.5 * st / s2)
+    };
+    let sr = r.sqrt();
+    let values = [sr * s2, sr * c2, sr * s2 * st, sr * c2 * st];
     let dr = (grad_phi * phi + grad_psi * psi) / r;
     let dtheta = (grad_phi * psi - grad_psi * phi) / (r * r);
-    let sr = r.sqrt();
-    let (s2, c2) = (0.5 * theta).sin_cos();
-    let (st, ct) = theta.sin_cos();
     // (∂F/∂r, ∂F/∂θ) per branch function.
     let partial = [
         (s2 / (2.0 * sr), 0.5 * sr * c2),
@@ -446,6 +471,44 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn branch_gradients_equal_the_angle_formulas_to_round_off() {
+        // The values of branch_values ∘ polar_angle, and the gradients of the
+        // chain rule with θ's sine and cosine, on circles around the front,
+        // the crack faces (φ = ±0 behind it) and the line ahead included.
+        let (gphi, gpsi) = (Vector3::new(0.3, 1.0, -0.2), Vector3::new(1.0, -0.1, 0.4));
+        let mut worst: f64 = 0.0;
+        for r in [1e-9, 1e-3, 0.7, 20.0] {
+            for k in 0..=720 {
+                let theta = -std::f64::consts::PI + std::f64::consts::PI * k as f64 / 360.0;
+                let (phi, psi) = (r * theta.sin(), r * theta.cos());
+                for (phi, side) in [(phi, 0), (phi, 1), (phi, -1), (0.0, 1), (-0.0, -1)] {
+                    let (v, g) = branch_with_gradients(phi, psi, &gphi, &gpsi, side);
+                    let th = polar_angle(phi, psi, side);
+                    let rr = phi.hypot(psi);
+                    let want = branch_values(rr, th);
+                    let sr = rr.sqrt();
+                    let (s2, c2) = (0.5 * th).sin_cos();
+                    let (st, ct) = th.sin_cos();
+                    let dr = (gphi * phi + gpsi * psi) / rr;
+                    let dt = (gphi * psi - gpsi * phi) / (rr * rr);
+                    let partial = [
+                        (s2 / (2.0 * sr), 0.5 * sr * c2),
+                        (c2 / (2.0 * sr), -0.5 * sr * s2),
+                        (s2 * st / (2.0 * sr), sr * (0.5 * c2 * st + s2 * ct)),
+                        (c2 * st / (2.0 * sr), sr * (-0.5 * s2 * st + c2 * ct)),
+                    ];
+                    for b in 0..N_BRANCH {
+                        worst = worst.max((v[b] - want[b]).abs() / sr);
+                        let gw = dr * partial[b].0 + dt * partial[b].1;
+                        worst = worst.max((g[b] - gw).norm() * sr);
+                    }
+                }
+            }
+        }
+        assert!(worst < 1e-14, "{worst:e}");
     }
 
     #[test]

@@ -187,6 +187,12 @@ pub struct Model {
     /// The boundary tractions (kept so that a cut event can integrate the
     /// enriched shape functions of the faces it changes again).
     pub tractions: Vec<Traction>,
+    /// Per element the cut event that made this model integrated: what its
+    /// block added to the loads and masses (shape ids of this model), so
+    /// that the next event takes it out without integrating the old block
+    /// again (a tip front changes every element holding its branch
+    /// functions at every event).
+    contributions: std::collections::HashMap<usize, ElementBlock>,
 }
 
 impl Model {
@@ -321,6 +327,7 @@ impl Model {
             consistent_mass,
             mid_edge,
             tractions: tractions.to_vec(),
+            contributions: Default::default(),
         };
         let mut load = std::mem::take(&mut model.load);
         for t in tractions {
@@ -1169,6 +1176,7 @@ fn element_cells(
 
 /// Step 2's result for one element: everything its cells contribute, in
 /// local shape order.
+#[derive(Clone)]
 struct ElementBlock {
     shape_ids: Vec<u32>,
     /// Local index of the first Heaviside shape function (nodes per element).
@@ -2276,8 +2284,13 @@ impl Model {
                 continue;
             }
             if need_mass || integrator.has_load() {
-                let old_cells = element_cells(mesh, self.cut.as_ref(), e)?;
-                let mut old_block = old_integrator.block(&old_cells, None);
+                let mut old_block = match self.contributions.get(&e) {
+                    Some(block) => block.clone(),
+                    None => {
+                        let old_cells = element_cells(mesh, self.cut.as_ref(), e)?;
+                        old_integrator.block(&old_cells, None)
+                    }
+                };
                 for s in old_block.shape_ids.iter_mut() {
                     *s = map[*s as usize];
                 }
@@ -2514,6 +2527,7 @@ impl Model {
             consistent_mass,
             mid_edge,
             tractions: self.tractions.clone(),
+            contributions: Default::default(),
         };
         let mut model = model;
         if !self.tractions.is_empty() {
@@ -2537,6 +2551,22 @@ impl Model {
             position,
             equation: eq_map,
         };
+        if need_mass || integrator.has_load() {
+            // The changed elements' new blocks (loads and masses only): a tip
+            // front changes most of them again at the next event. Only
+            // these, so the map holds what one event changed, not a sweep.
+            for (e, block) in changed {
+                model.contributions.insert(
+                    e,
+                    ElementBlock {
+                        groups: Vec::new(),
+                        grads: Vec::new(),
+                        stiffness: Vec::new(),
+                        ..block
+                    },
+                );
+            }
+        }
         Ok((model, stats, update))
     }
 }
