@@ -453,16 +453,27 @@ fn merge(mesh: &TetMesh, setups: Vec<CutSetup>) -> Result<CutSetup, CutError> {
     })
 }
 
+/// How far [`lift_faces_the_front_crosses`] moves nodes off the surface,
+/// relative to their element size: the snap, or [`DEFAULT_SNAP`] without
+/// snapping.
+fn lift_distance(snap: f64) -> f64 {
+    if snap > 0.0 {
+        snap
+    } else {
+        DEFAULT_SNAP
+    }
+}
+
 /// A face lying in the surface (φ = 0 at its three vertices, on a node
 /// layer or snapped onto it) that the front crosses (ψ of both strict signs
 /// at its vertices) could only be cut whole or not at all: the cut would end
 /// at a node line up to an element away from where it is given. Its nodes
-/// (Tet10: the mid-nodes of the edges in the surface from them too) are moved `snap` · h off the
-/// surface, on the side they came from (exactly on it: the + side; `snap` =
-/// 0: [`DEFAULT_SNAP`]), so the elements on the other side are crossed, a
-/// sliver of them cut, and the front passes through them as through any
-/// front element. Faces the front does not cross stay in the surface (a cut
-/// along a node layer opens the mesh's faces exactly).
+/// (Tet10: the mid-nodes of the edges in the surface from them too) are
+/// moved [`lift_distance`] · h off the surface, on the side they came from
+/// (exactly on it: the + side), so the elements on the other side are
+/// crossed, a sliver of them cut, and the front passes through them as
+/// through any front element. Faces the front does not cross stay in the
+/// surface (a cut along a node layer opens the mesh's faces exactly).
 fn lift_faces_the_front_crosses(
     mesh: &TetMesh,
     phi: &mut [f64],
@@ -500,7 +511,7 @@ fn lift_faces_the_front_crosses(
             }
         }
     }
-    let distance = if snap > 0.0 { snap } else { DEFAULT_SNAP };
+    let distance = lift_distance(snap);
     for (i, _) in lift.iter().enumerate().filter(|(_, &l)| l) {
         phi[i] = if below[i] { -distance } else { distance } * h[i];
     }
@@ -579,7 +590,7 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
         crossed[e] = true;
         let poly = section_polygon(&p, &f);
         // Snapped or lifted nodes move the section up to a snap off the surface.
-        let reach = 2.0 * if snap > 0.0 { snap } else { DEFAULT_SNAP } * mesh.element_size(e);
+        let reach = 2.0 * lift_distance(snap) * mesh.element_size(e);
         if !surface.overlaps(&poly, reach) {
             elements.push(ElementCut::Uncut);
             continue;
