@@ -50,6 +50,16 @@ fn cuts() -> CutSet {
     seed_blade(0.0, 1.0)
 }
 
+/// An integrator on `model` from rest, three steps on (its factor made).
+fn settled(model: &Model, opts: DynamicOptions) -> Newmark<'_> {
+    let mut nm = Newmark::new(model, Cholesky::new(&model.pattern).unwrap(), opts).unwrap();
+    nm.initialise_acceleration().unwrap();
+    for _ in 0..3 {
+        nm.step().unwrap();
+    }
+    nm
+}
+
 /// The step after an event on `model` from the mapped `state` (integrator,
 /// numeric factorisation, the step), on the factorisation `chol`.
 fn first_step(model: &Model, chol: Cholesky, state: State, opts: DynamicOptions) {
@@ -174,22 +184,12 @@ fn benches(c: &mut Criterion) {
         for formulation in [Formulation::Linear, Formulation::Corotational] {
             let name = format!("{size}_{formulation:?}").to_lowercase();
             let uncut = model(&mesh, None, formulation);
-            let mut nm =
-                Newmark::new(&uncut, Cholesky::new(&uncut.pattern).unwrap(), opts).unwrap();
-            nm.initialise_acceleration().unwrap();
-            for _ in 0..3 {
-                nm.step().unwrap();
-            }
+            let mut nm = settled(&uncut, opts);
             group.bench_function(BenchmarkId::new("step_uncut", &name), |b| {
                 b.iter(|| black_box(nm.step().unwrap()))
             });
             let model_a = model(&mesh, setup_a.clone(), formulation);
-            let mut nm =
-                Newmark::new(&model_a, Cholesky::new(&model_a.pattern).unwrap(), opts).unwrap();
-            nm.initialise_acceleration().unwrap();
-            for _ in 0..3 {
-                nm.step().unwrap();
-            }
+            let mut nm = settled(&model_a, opts);
             let state_a = nm.state.clone();
             group.bench_function(BenchmarkId::new("step_sweep", &name), |b| {
                 b.iter(|| black_box(nm.step().unwrap()))
@@ -304,12 +304,7 @@ fn benches(c: &mut Criterion) {
                 formulation,
             );
             let model_a = before.update_cut(setup_a.clone()).unwrap().0;
-            let mut nm =
-                Newmark::new(&model_a, Cholesky::new(&model_a.pattern).unwrap(), opts).unwrap();
-            nm.initialise_acceleration().unwrap();
-            for _ in 0..3 {
-                nm.step().unwrap();
-            }
+            let mut nm = settled(&model_a, opts);
             let state_a = nm.state.clone();
             let (model_b, stats) = model_a.update_cut(setup_b.clone()).unwrap();
             eprintln!(
