@@ -19,11 +19,11 @@ refs-env:
 
 # Every level and the fine reference (make refs NP=4 runs the solves under mpirun).
 refs: refs-env
-	cd refs && $(REFS_PY) make_refs.py --set all --np $(NP)
+	cd refs && $(REFS_PY) make_refs.py --set all --np $(NP) --jobs $(JOBS)
 
 # The coarse levels the tests need.
 refs-test: refs-env
-	cd refs && $(REFS_PY) make_refs.py --set test --np $(NP)
+	cd refs && $(REFS_PY) make_refs.py --set test --np $(NP) --jobs $(JOBS)
 
 # The old reference (uniform 2.8 mm, P2, CG + GAMG): only to measure its error against the graded one.
 refs-uniform: refs-env
