@@ -73,6 +73,9 @@ pub enum BladeError {
 #[derive(Debug, Clone)]
 pub struct Blade {
     keyframes: Vec<(f64, [Point3<f64>; 2])>,
+    /// A straight sweep's travel as given (the two keyframes hold a and
+    /// a + travel, whose difference can differ from it in the last bits).
+    travel: Option<Vector3<f64>>,
     /// Index of its `[[cut]]` in the scene (for errors).
     pub index: usize,
 }
@@ -126,7 +129,11 @@ impl Blade {
                 return Err(err(key, message));
             }
         }
-        let blade = Blade { keyframes, index };
+        let blade = Blade {
+            keyframes,
+            travel: None,
+            index,
+        };
         // A path's completed strip must be a surface (every prefix of it then is).
         if !blade.is_straight() {
             blade.strip(blade.end()).map_err(|e| {
@@ -139,7 +146,8 @@ impl Blade {
         Ok(blade)
     }
 
-    /// A straight sweep: the edge a–b moves by `travel` between `start` and `end`.
+    /// A straight sweep: the edge a–b moves by `travel` between `start` and
+    /// `end`; completed, it is the patch origin = a, u = b − a, v = travel.
     pub fn straight(
         index: usize,
         a: Point3<f64>,
@@ -148,10 +156,26 @@ impl Blade {
         start: f64,
         end: f64,
     ) -> Result<Blade, BladeError> {
-        Blade::new(
+        Blade::from_keyframes(
             index,
             vec![(start, [a, b]), (end, [a + travel, b + travel])],
+            Some(travel),
         )
+    }
+
+    /// A blade from a scene's keyframes and, for a straight sweep, its
+    /// `travel` as given (the two keyframes are then (start, [a, b]) and
+    /// (end, [a + travel, b + travel])).
+    pub fn from_keyframes(
+        index: usize,
+        keyframes: Vec<(f64, [Point3<f64>; 2])>,
+        travel: Option<Vector3<f64>>,
+    ) -> Result<Blade, BladeError> {
+        let mut blade = Blade::new(index, keyframes)?;
+        if blade.keyframes.len() == 2 {
+            blade.travel = travel;
+        }
+        Ok(blade)
     }
 
     pub fn start(&self) -> f64 {
@@ -183,6 +207,9 @@ impl Blade {
         if self.keyframes.len() != 2 {
             return false;
         }
+        if self.travel.is_some() {
+            return true;
+        }
         let [a0, b0] = self.keyframes[0].1;
         let [a1, b1] = self.keyframes[1].1;
         let (u0, u1) = (b0 - a0, b1 - a1);
@@ -199,7 +226,7 @@ impl Blade {
         if self.is_straight() {
             let (t0, [a1, _]) = (self.keyframes[0].0, self.keyframes[1].1);
             let t1 = self.keyframes[1].0;
-            let travel = a1 - a0;
+            let travel = self.travel.unwrap_or(a1 - a0);
             let full = PlanarPatch {
                 origin: a0,
                 u: b0 - a0,
@@ -346,8 +373,8 @@ impl CutSet {
                     TriangleSurface::read(path)
                         .map_err(|source| BladeError::Surface { index, source })?,
                 )),
-                CutGeometry::Blade { keyframes } => {
-                    CutItem::Blade(Blade::new(index, keyframes.clone())?)
+                CutGeometry::Blade { keyframes, travel } => {
+                    CutItem::Blade(Blade::from_keyframes(index, keyframes.clone(), *travel)?)
                 }
             });
         }

@@ -137,9 +137,12 @@ pub enum CutGeometry {
     Surface(PathBuf),
     /// `blade`: the cutting edge [a, b] at increasing times, linear in
     /// between (`travel` + `start` + `end` is normalised to the two keyframes
-    /// (start, [a, b]) and (end, [a + travel, b + travel])).
+    /// (start, [a, b]) and (end, [a + travel, b + travel]), and `travel`
+    /// kept as given: the completed sweep is then the patch origin = a,
+    /// u = b − a, v = travel to the last bit, not v = (a + travel) − a).
     Blade {
         keyframes: Vec<(f64, [Point3<f64>; 2])>,
+        travel: Option<Vector3<f64>>,
     },
 }
 

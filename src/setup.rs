@@ -165,13 +165,13 @@ impl Scene {
                         what: "a blade in a dynamic scene through the CLI (the library's blade::run_dynamic runs it)".into(),
                     })
                 }
-                CutGeometry::Blade { keyframes } => {
-                    let blade = Blade::new(i, keyframes.clone()).map_err(|source| {
-                        SceneError::Blade {
+                CutGeometry::Blade { keyframes, travel } => {
+                    let blade = Blade::from_keyframes(i, keyframes.clone(), *travel).map_err(
+                        |source| SceneError::Blade {
                             file: file.clone(),
                             source,
-                        }
-                    })?;
+                        },
+                    )?;
                     match blade.swept(f64::INFINITY) {
                         Some(swept) => swept.into_surface(),
                         None => {

@@ -590,7 +590,7 @@ fn validate_cut(c: &Checker, k: &str, t: CutFile, base: &Path) -> Result<CutSpec
         if (b - a).norm() == 0.0 {
             return Err(c.err(key("blade"), "the edge a–b has zero length"));
         }
-        let keyframes = match (t.travel, t.path) {
+        let (keyframes, travel) = match (t.travel, t.path) {
             (Some(_), Some(_)) => {
                 return Err(c.err(
                     key("path"),
@@ -633,7 +633,10 @@ fn validate_cut(c: &Checker, k: &str, t: CutFile, base: &Path) -> Result<CutSpec
                         format!("must be later than start = {start}, got {end}"),
                     ));
                 }
-                vec![(start, [a, b]), (end, [a + travel, b + travel])]
+                (
+                    vec![(start, [a, b]), (end, [a + travel, b + travel])],
+                    Some(travel),
+                )
             }
             (None, Some(path)) => {
                 c.absent(&key("start"), t.start.is_some(), "only with travel")?;
@@ -695,10 +698,10 @@ fn validate_cut(c: &Checker, k: &str, t: CutFile, base: &Path) -> Result<CutSpec
                 if (p0 - a).norm() > 0.0 || (p1 - b).norm() > 0.0 {
                     return Err(c.err(key("path"), "the first keyframe must be the blade [a, b]"));
                 }
-                frames
+                (frames, None)
             }
         };
-        CutGeometry::Blade { keyframes }
+        CutGeometry::Blade { keyframes, travel }
     };
 
     let snap = match t.snap {
