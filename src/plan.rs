@@ -81,17 +81,32 @@ impl Plan {
                 }
             ),
         );
+        // A blade in a dynamic scene cuts while it runs: the set-up, the
+        // element data and the pattern are made again at its cut events.
+        let progressive = dynamic.is_some()
+            && scene
+                .cuts
+                .iter()
+                .any(|c| matches!(c.geometry, crate::scene::CutGeometry::Blade { .. }));
         add(
             "cut set-up (level set, classification, sub-tets, enrichment)",
             cut,
-            if cut {
-                "the scene has [[cut]]"
-            } else {
-                "no cut in the scene"
+            match (cut, progressive) {
+                (true, true) => "the scene has a blade: at the start, then near the blade at each step its swept surface may have grown",
+                (true, false) => "the scene has [[cut]]",
+                (false, _) => "no cut in the scene",
             },
         );
-        add("element data (gradients, integration groups)", true, "once");
-        add("sparsity pattern + symbolic factorisation", true, "once");
+        let (data, pattern) = if progressive {
+            (
+                "at the start, then for the elements each cut event changes",
+                "at the start, then at each cut event that changes the pattern",
+            )
+        } else {
+            ("once", "once")
+        };
+        add("element data (gradients, integration groups)", true, data);
+        add("sparsity pattern + symbolic factorisation", true, pattern);
         match dynamic.map(|o| o.mass) {
             Some(MassKind::Lumped) => add("mass (lumped, eq. 81-82)", true, "dynamic scene"),
             Some(MassKind::Consistent) => add(
@@ -173,11 +188,7 @@ impl Plan {
                 "exact corotational tangent (rotation derivative included) changes",
             ),
         }
-        let blades = scene
-            .cuts
-            .iter()
-            .any(|c| matches!(c.geometry, crate::scene::CutGeometry::Blade { .. }));
-        if let (true, Some(o)) = (blades, dynamic) {
+        if let (true, Some(o)) = (progressive, dynamic) {
             match (corot, o.event_solve) {
                 (false, EventSolve::Bordered { max_border }) => add(
                     "cut events: bordered solve on the last factor",
@@ -192,7 +203,7 @@ impl Plan {
                 (true, _) => add(
                     "cut events: bordered solve on the last factor",
                     false,
-                    "corotational: the tangent is refactorised every iteration anyway",
+                    "corotational: the step after an event factorises the new model's tangent",
                 ),
             }
         }

@@ -424,7 +424,7 @@ fn a_blade_path_may_leave_out_the_blade_as_its_first_keyframe() {
         ));
         let scene = Scene::parse(&text, Path::new("case.toml")).unwrap();
         match &scene.cuts[0].geometry {
-            CutGeometry::Blade { keyframes } => keyframes.clone(),
+            CutGeometry::Blade { keyframes, .. } => keyframes.clone(),
             _ => panic!("a blade"),
         }
     };
@@ -487,4 +487,60 @@ fn xfem_threads_runs_on_more_threads_with_the_same_answer() {
         "{err}"
     );
     assert_eq!(err.trim().lines().count(), 1);
+}
+
+/// A blade's run says what its precompute really is (the cut is set up at
+/// the start and at each event, not before the run) and the steps' times
+/// apart from the events, beside the sweep.
+#[test]
+fn a_blade_run_reports_its_steps_apart_from_its_events() {
+    let cut = "blade = [[0.0, -0.01, 0.1], [0.0, 0.07, 0.1]]\ntravel = [0.015, 0.0, 0.0]\nstart = 0.0\nend = 0.02";
+    let text = with_cut(cut)
+        .replace(
+            "type = \"static\"",
+            "type = \"dynamic\"\ndt = 0.01\nsteps = 4",
+        )
+        .replace("levels = [[1, 2, 4]]", "levels = [[1, 2, 8]]");
+    let dir = tempfile::tempdir().unwrap();
+    let case = dir.path().join("case.toml");
+    std::fs::write(&case, text).unwrap();
+    let out = Command::new(bin())
+        .args(["run", case.to_str().unwrap(), "--out"])
+        .arg(dir.path().join("out"))
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let line = |start: &str| {
+        stdout
+            .lines()
+            .find(|l| l.starts_with(start))
+            .unwrap_or_else(|| panic!("no line {start:?} in:\n{stdout}"))
+            .to_string()
+    };
+    assert!(
+        line("precompute:").contains("at each cut event"),
+        "{stdout}"
+    );
+    // The plan: the element data and the pattern are not made once.
+    assert!(
+        line("  [run ] element data").contains("each cut event changes"),
+        "{stdout}"
+    );
+    assert!(
+        line("  [run ] sparsity pattern").contains("each cut event that changes the pattern"),
+        "{stdout}"
+    );
+    let steps = line("per step (Newton solve, events apart): median ");
+    let ms: Vec<f64> = steps
+        .split(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .filter_map(|w| w.parse().ok())
+        .collect();
+    assert_eq!(ms.len(), 2, "{steps}");
+    assert!(ms[0] > 0.0 && ms[0] <= ms[1], "{steps}");
+    assert!(line("sweep ").contains("cut events"), "{stdout}");
 }
