@@ -24,7 +24,7 @@ use nalgebra::{Matrix3, Point3, Vector3};
 use std::ops::Range;
 
 pub use crate::kernel::{group_rotation, GroupKernel};
-use crate::mass::lump_cell_mass;
+use crate::mass::lump_element_mass;
 
 /// Marker for a DOF that is not in the system (prescribed), or an entry not stored.
 pub const NONE: u32 = u32::MAX;
@@ -1284,6 +1284,8 @@ impl Integrator<'_> {
         // The points' shape values (m a column) and ρ w: the consistent mass
         // is one product V W Vᵀ at the end, not m² updates a point.
         let (mut mass_values, mut mass_weights) = (Vec::new(), Vec::new());
+        // Per cell: ∫N_k and ∫N_k² for the lumped mass.
+        let (mut lump_n, mut lump_n2) = (Vec::new(), Vec::new());
         for cell in &cells.cells {
             let (mut int_n, mut int_n2) = ([0.0; 10], [0.0; 10]);
             let (columns, weights) = &mut sides[(cell.side + 1) as usize];
@@ -1317,8 +1319,12 @@ impl Integrator<'_> {
                 }
             }
             if self.need_mass {
-                self.lump(cells, cell, &int_n, &int_n2, block, sink);
+                lump_n.push(int_n);
+                lump_n2.push(int_n2);
             }
+        }
+        if self.need_mass {
+            self.lump(cells, &lump_n, &lump_n2, block, sink);
         }
         for (columns, weights) in &sides {
             if self.stiffness && !weights.is_empty() {
@@ -1413,6 +1419,8 @@ impl Integrator<'_> {
         let mut ngrads = [Vector3::zeros(); 10];
         let mut shape_val = vec![0.0; m];
         let mut side_group: [Option<usize>; 3] = [None; 3];
+        // Per cell: ∫N_k and ∫N_k² for the lumped mass.
+        let (mut lump_n, mut lump_n2) = (Vec::new(), Vec::new());
         for cell in &cells.cells {
             for q in stiffness_rule {
                 let (bary, w) = map_point(&cells.verts, &cell.vertices, q, cell.volume);
@@ -1489,30 +1497,37 @@ impl Integrator<'_> {
                         int_n2[k] += w * nvals[k] * nvals[k];
                     }
                 }
-                self.lump(cells, cell, &int_n, &int_n2, block, sink);
+                lump_n.push(int_n);
+                lump_n2.push(int_n2);
             }
+        }
+        if self.need_mass {
+            self.lump(cells, &lump_n, &lump_n2, block, sink);
         }
     }
 
-    /// Adds one cell's lumped mass (seed eq. 81–82, [`lump_cell_mass`]) to the block.
+    /// Adds the cells' lumped masses (seed eq. 81–82, [`lump_element_mass`]:
+    /// `int_n[c]`, `int_n2[c]` are cell c's ∫N_k, ∫N_k²) to the block.
     fn lump(
         &self,
         cells: &ElementCells,
-        cell: &Cell,
-        int_n: &[f64; 10],
-        int_n2: &[f64; 10],
+        int_n: &[[f64; 10]],
+        int_n2: &[[f64; 10]],
         block: &mut ElementBlock,
         sink: &mut Sink<'_>,
     ) {
         let nn = self.mesh.kind.nodes();
-        let share = lump_cell_mass(self.mesh.kind, self.rho, cell.volume, int_n, int_n2);
-        for k in 0..nn {
-            sink.lumped(block, k, share[k]);
-        }
-        for (j, &k) in cells.heaviside.iter().enumerate() {
-            let p = cells.psi(cell, k);
-            sink.lumped(block, nn + j, p * p * share[k]);
-            sink.coupling(block, j, p * share[k]);
+        let volumes: Vec<f64> = cells.cells.iter().map(|c| c.volume).collect();
+        let shares = lump_element_mass(self.mesh.kind, self.rho, &volumes, int_n, int_n2);
+        for (cell, share) in cells.cells.iter().zip(&shares) {
+            for k in 0..nn {
+                sink.lumped(block, k, share[k]);
+            }
+            for (j, &k) in cells.heaviside.iter().enumerate() {
+                let p = cells.psi(cell, k);
+                sink.lumped(block, nn + j, p * p * share[k]);
+                sink.coupling(block, j, p * share[k]);
+            }
         }
     }
 }

@@ -69,13 +69,29 @@ fn a_static_blade_takes_the_completed_sweep_and_equals_the_patch() {
 
 #[test]
 fn cut_events_keep_both_energies_and_refactorise_only_there() {
-    let mesh = bar([3, 3, 6]);
     let g = Vector3::new(-9.81, 0.0, 0.0);
     use xfem_cut::dynamics::{EventSolve, DEFAULT_EVENT_SOLVE};
-    for (formulation, event_solve) in [
-        (Formulation::Linear, EventSolve::Refactorise),
-        (Formulation::Linear, DEFAULT_EVENT_SOLVE),
-        (Formulation::Corotational, DEFAULT_EVENT_SOLVE),
+    // Tet4, and Tet10 with its (default) lumped mass: HRZ per cell, balanced
+    // to the uncut element's node masses (`mass::lump_element_mass`; per-cell
+    // HRZ alone changed the kinetic energy by 1.1e-4 at an event here).
+    for (mesh, formulation, event_solve) in [
+        (bar([3, 3, 6]), Formulation::Linear, EventSolve::Refactorise),
+        (bar([3, 3, 6]), Formulation::Linear, DEFAULT_EVENT_SOLVE),
+        (
+            bar([3, 3, 6]),
+            Formulation::Corotational,
+            DEFAULT_EVENT_SOLVE,
+        ),
+        (
+            bar([3, 3, 6]).to_tet10(),
+            Formulation::Linear,
+            DEFAULT_EVENT_SOLVE,
+        ),
+        (
+            bar([3, 3, 6]).to_tet10(),
+            Formulation::Corotational,
+            DEFAULT_EVENT_SOLVE,
+        ),
     ] {
         let cuts = one_blade(blade(0.05, 0.25));
         let opts = DynamicOptions {
@@ -92,11 +108,11 @@ fn cut_events_keep_both_energies_and_refactorise_only_there() {
         })
         .unwrap();
         let sw = &run.sweep;
-        println!("{formulation:?} {event_solve:?}: {sw}");
+        println!("{:?} {formulation:?} {event_solve:?}: {sw}", mesh.kind);
         assert_eq!(frames, opts.steps + 1);
         assert!(sw.events.len() >= 3, "{} events", sw.events.len());
         let mut dofs = sw.dofs_first;
-        let mut worst: f64 = 0.0;
+        let (mut worst, mut worst_strain): (f64, f64) = (0.0, 0.0);
         for e in &sw.events {
             assert_eq!(e.dofs_before, dofs);
             assert!(
@@ -113,11 +129,27 @@ fn cut_events_keep_both_energies_and_refactorise_only_there() {
                 "  event at t = {:.2}: DOFs {} → {}, kinetic {:.6e} (rel. change {dk:.1e}), strain {:.6e} ({ds:.1e}), {:.2e} s",
                 e.time, e.dofs_before, e.dofs_after, e.before.kinetic, e.before.strain, e.seconds
             );
-            worst = worst.max(dk).max(ds).max(dw);
+            worst = worst.max(dk).max(dw);
+            worst_strain = worst_strain.max(ds);
         }
         assert!(
             worst <= 1e-12,
             "{formulation:?}: energy jump {worst:e} at an event"
+        );
+        // Corotational Tet10 rotates each quadrature point of an element:
+        // a cut element's points are its sub-tets', so its corotated strain
+        // energy is integrated by another rule after the event (measured
+        // ≤ 1.9e-5 here); every other one is the same function of d.
+        let strain_bound = if mesh.kind == xfem_cut::mesh::ElementKind::Tet10
+            && formulation == Formulation::Corotational
+        {
+            1e-4
+        } else {
+            1e-12
+        };
+        assert!(
+            worst_strain <= strain_bound,
+            "{formulation:?}: strain energy jump {worst_strain:e} at an event"
         );
         assert_eq!(sw.dofs_last, dofs);
         assert_eq!(run.model.n_dofs(), dofs);
@@ -129,8 +161,12 @@ fn cut_events_keep_both_energies_and_refactorise_only_there() {
         } else {
             // Bordered events keep the old factor's symbolic analysis.
             assert!(bordered >= 1, "{sw}");
-            // At most one symbolic analysis per refactorised event.
-            assert!(sw.symbolic <= 1 + sw.events.len() - bordered, "{sw}");
+            // At most one symbolic analysis per refactorised event, and per
+            // border refactorised later (the grown matrix's own).
+            assert!(
+                sw.symbolic <= 1 + sw.events.len() - bordered + sw.refreshed,
+                "{sw}"
+            );
         }
         if formulation == Formulation::Linear {
             // The mass at the start, then one factorisation per model (the
@@ -503,9 +539,7 @@ fn blades_along_nodes_near_nodes_stopping_inside_and_re_entering_run_stably() {
             "no event after re-entering"
         );
     }
-    // Tet10, with the consistent mass: the Tet10 lumped mass (HRZ per sub-tet)
-    // of standard DOFs changes when an element is cut, so the kinetic energy
-    // jumps at events there (1.1e-4 relative on this bar).
+    // Tet10, with the consistent mass (the lumped one: above).
     let mesh10 = bar([2, 2, 4]).to_tet10();
     let b = Blade::straight(
         0,
