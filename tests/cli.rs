@@ -32,8 +32,8 @@ type = "static"
 points = [[0.0, 0.03, 0.2], [0.03, 0.06, 0.2]]
 "#;
 
-/// Runs `xfem-cut run` on `text` written to a temp case file.
-fn run_case(text: &str) -> (bool, String, tempfile::TempDir) {
+/// Runs `xfem-cut run` on `text` written to a temp case file: its output.
+fn run_output(text: &str) -> (std::process::Output, tempfile::TempDir) {
     let dir = tempfile::tempdir().unwrap();
     let case = dir.path().join("case.toml");
     std::fs::write(&case, text).unwrap();
@@ -44,6 +44,12 @@ fn run_case(text: &str) -> (bool, String, tempfile::TempDir) {
         .arg(dir.path().join("out"))
         .output()
         .unwrap();
+    (out, dir)
+}
+
+/// Runs `xfem-cut run` on `text` written to a temp case file.
+fn run_case(text: &str) -> (bool, String, tempfile::TempDir) {
+    let (out, dir) = run_output(text);
     (
         out.status.success(),
         String::from_utf8_lossy(&out.stderr).to_string(),
@@ -301,16 +307,7 @@ fn the_plan_shows_the_options_the_run_uses() {
             "[run ] mass",
         ),
     ] {
-        let dir = tempfile::tempdir().unwrap();
-        let case = dir.path().join("case.toml");
-        std::fs::write(&case, &text).unwrap();
-        let out = Command::new(bin())
-            .arg("run")
-            .arg(&case)
-            .arg("--out")
-            .arg(dir.path().join("out"))
-            .output()
-            .unwrap();
+        let (out, _dir) = run_output(&text);
         let stdout = String::from_utf8_lossy(&out.stdout);
         assert!(
             out.status.success(),
@@ -501,14 +498,7 @@ fn a_blade_run_reports_its_steps_apart_from_its_events() {
             "type = \"dynamic\"\ndt = 0.01\nsteps = 4",
         )
         .replace("levels = [[1, 2, 4]]", "levels = [[1, 2, 8]]");
-    let dir = tempfile::tempdir().unwrap();
-    let case = dir.path().join("case.toml");
-    std::fs::write(&case, text).unwrap();
-    let out = Command::new(bin())
-        .args(["run", case.to_str().unwrap(), "--out"])
-        .arg(dir.path().join("out"))
-        .output()
-        .unwrap();
+    let (out, _dir) = run_output(&text);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),
