@@ -341,6 +341,10 @@ impl CutSurface for GrowingPatch {
     fn boundary(&self) -> Vec<[Point3<f64>; 2]> {
         self.part.boundary()
     }
+
+    fn behind_front(&self, x: &Point3<f64>, front: &[[Point3<f64>; 2]]) -> bool {
+        self.part.behind_front(x, front)
+    }
 }
 
 /// One `[[cut]]` of a scene: a surface given up front, or a blade.

@@ -55,6 +55,26 @@ pub trait CutSurface: Send + Sync {
     fn contains(&self, x: &Point3<f64>, tol: f64) -> bool;
     /// The surface's boundary as segments; the part inside the body is the crack front.
     fn boundary(&self) -> Vec<[Point3<f64>; 2]>;
+    /// Whether the foot of `x` lies behind the front (ψ < 0): in the
+    /// surface, or past one of its edges that is not front (`front`: the
+    /// boundary segments, as [`CutSurface::boundary`] gives them, that are).
+    /// An edge outside the body is not front: an oblique surface entering
+    /// through a face of the body has the feet of that face's nodes on one
+    /// side past its edge there, and they are behind the front, not ahead.
+    /// Default: in the surface, or nearer to an edge that is not front
+    /// than to the front.
+    fn behind_front(&self, x: &Point3<f64>, front: &[[Point3<f64>; 2]]) -> bool {
+        if self.contains(x, 0.0) {
+            return true;
+        }
+        let others: Vec<[Point3<f64>; 2]> = self
+            .boundary()
+            .into_iter()
+            .filter(|b| !front.contains(b))
+            .collect();
+        !others.is_empty()
+            && crate::front::front_distance(x, &others) < crate::front::front_distance(x, front)
+    }
 }
 
 impl PlanarPatch {
@@ -140,6 +160,18 @@ impl CutSurface for PlanarPatch {
         let o = self.origin;
         let c = [o, o + self.u, o + self.u + self.v, o + self.v];
         (0..4).map(|k| [c[k], c[(k + 1) % 4]]).collect()
+    }
+
+    /// Exact for the patch: only the bounds of its front edges count (edges
+    /// t = 0, s = 1, t = 1, s = 0 in [`CutSurface::boundary`]'s order).
+    fn behind_front(&self, x: &Point3<f64>, front: &[[Point3<f64>; 2]]) -> bool {
+        let (s, t) = self.coordinates(x);
+        let edges = self.boundary();
+        let open = |k: usize| !front.contains(&edges[k]);
+        (t >= 0.0 || open(0))
+            && (s <= 1.0 || open(1))
+            && (t <= 1.0 || open(2))
+            && (s >= 0.0 || open(3))
     }
 }
 
@@ -536,20 +568,25 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
         return Err(CutError::Degenerate(index));
     }
     // ψ from the unsnapped φ, the front segments and `contains` (tip mode only).
+    let boundary = surface.boundary();
     let front = match input.front {
         FrontMode::Extend => None,
-        FrontMode::Tip => Some(front::front_segments(mesh, &surface.boundary())),
+        FrontMode::Tip => Some(front::front_segments(mesh, &boundary)),
     };
+    // The front carried on outside the body: ψ and `tip_radius` measure to it.
+    let front_reach = front.as_deref().map(|f| front::extend_front_exits(mesh, f));
     let mut front_level: Vec<f64> = match &front {
-        Some(segments) => mesh
-            .nodes
-            .iter()
-            .zip(&phi)
-            .map(|(x, &f)| {
-                let d = front::front_distance(x, segments);
-                front::front_level_set(f, d, surface.contains(x, 0.0))
-            })
-            .collect(),
+        Some(front) => {
+            let segments = front_reach.as_deref().unwrap_or_default();
+            mesh.nodes
+                .iter()
+                .zip(&phi)
+                .map(|(x, &f)| {
+                    let d = front::front_distance(x, segments);
+                    front::front_level_set(f, d, surface.behind_front(x, front))
+                })
+                .collect()
+        }
         None => Vec::new(),
     };
     // The sides of the nodes that snapping puts on the surface; within
@@ -717,7 +754,8 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
         }
         if let Some(radius) = input.tip_radius {
             for (i, x) in mesh.nodes.iter().enumerate() {
-                if is_vertex[i] && front::front_distance(x, segments) <= radius {
+                let reach = front_reach.as_deref().unwrap_or(segments);
+                if is_vertex[i] && front::front_distance(x, reach) <= radius {
                     is_tip[i] = true;
                 }
             }

@@ -142,6 +142,54 @@ pub fn front_segments(mesh: &TetMesh, boundary: &[[Point3<f64>; 2]]) -> Vec<[Poi
         .collect()
 }
 
+/// The front segments with every end where the front leaves the body (the
+/// segment continued a little beyond it is in no element) carried on along
+/// the segment, by the body's diagonal: the front's continuation outside the
+/// body. ψ and the distances to the front are taken to these, so that how
+/// far the user's surface runs on outside the body changes nothing inside
+/// it (a segment that ends just outside would otherwise give the nodes
+/// near the body's face their distance to its end, not to its line).
+pub fn extend_front_exits(mesh: &TetMesh, front: &[[Point3<f64>; 2]]) -> Vec<[Point3<f64>; 2]> {
+    let (lo, hi) = mesh.bounding_box();
+    let diagonal = (hi - lo).norm();
+    let boxes: Vec<(Point3<f64>, Point3<f64>)> = (0..mesh.n_elements())
+        .map(|e| {
+            let p = mesh.vertex_points(e);
+            let lo = p.iter().fold(p[0], |a, b| a.inf(b));
+            let hi = p.iter().fold(p[0], |a, b| a.sup(b));
+            (lo, hi)
+        })
+        .collect();
+    let in_body = |x: &Point3<f64>| {
+        (0..mesh.n_elements()).any(|e| {
+            let (lo, hi) = boxes[e];
+            (0..3).all(|c| x[c] >= lo[c] && x[c] <= hi[c])
+                && barycentric(&mesh.vertex_points(e), x)
+                    .is_some_and(|l| l.iter().all(|&v| v >= -1e-12))
+        })
+    };
+    front
+        .iter()
+        .map(|seg| {
+            let d = seg[1] - seg[0];
+            let len = d.norm();
+            if len == 0.0 {
+                return *seg;
+            }
+            let dir = d / len;
+            let step = 1e-6 * diagonal;
+            let mut out = *seg;
+            if !in_body(&(seg[0] - dir * step)) {
+                out[0] = seg[0] - dir * diagonal;
+            }
+            if !in_body(&(seg[1] + dir * step)) {
+                out[1] = seg[1] + dir * diagonal;
+            }
+            out
+        })
+        .collect()
+}
+
 /// The midpoint of the piece of segment `seg` inside the closed tet `p`
 /// (every barycentric coordinate above −1e-9), if that piece has a
 /// positive length.

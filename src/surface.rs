@@ -363,6 +363,36 @@ impl CutSurface for TriangleSurface {
         })
     }
 
+    /// Behind the front where the closest point is inside the surface, on a
+    /// boundary edge that is not front or on a boundary vertex that ends no
+    /// front segment; by `contains` else.
+    fn behind_front(&self, x: &Point3<f64>, front: &[[Point3<f64>; 2]]) -> bool {
+        let (t, _, feature) = self.closest(x);
+        let tri = self.triangles[t];
+        let on_front = |a: Point3<f64>, b: Point3<f64>| {
+            front
+                .iter()
+                .any(|s| (s[0] == a && s[1] == b) || (s[0] == b && s[1] == a))
+        };
+        match feature {
+            Feature::Face => return true,
+            Feature::Edge(k) => {
+                let (i, j) = (tri[k], tri[(k + 1) % 3]);
+                if !self.edges[&edge_key(i, j)].1 || !on_front(self.vertices[i], self.vertices[j]) {
+                    return true;
+                }
+            }
+            Feature::Vertex(k) => {
+                let v = self.vertices[tri[k]];
+                if !self.vertex_on_boundary[tri[k]] || !front.iter().any(|s| s[0] == v || s[1] == v)
+                {
+                    return true;
+                }
+            }
+        }
+        self.contains(x, 0.0)
+    }
+
     fn boundary(&self) -> Vec<[Point3<f64>; 2]> {
         let mut out: Vec<(usize, usize)> = self
             .edges

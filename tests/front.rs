@@ -1069,3 +1069,80 @@ points = [[0.0, 0.03, 0.2], [0.03, 0.03, 0.2]]
         }
     }
 }
+
+/// An oblique patch entering through the face x = 0 of the beam: the nodes of
+/// that face project past the patch's edge on one side of it. Those feet
+/// lie beyond an edge outside the body, which is not front: they are behind
+/// the front, and how far the patch (and its front) runs on outside the
+/// body changes nothing inside it. Before: ψ > 0 there (ahead of the front),
+/// a front in the first element column was refused as cutting nothing, and
+/// a deeper one gave other probes (1e-4 relative) as the patch grew outside.
+#[test]
+fn how_far_an_oblique_patch_runs_on_outside_the_body_changes_nothing() {
+    use std::path::Path;
+    use xfem_cut::run::{probe_values, solve_scene};
+    use xfem_cut::scene::Scene;
+    let scene = |element: &str, depth: f64, out_u: f64, out_v: f64| {
+        // The edge o + u + t v inside the body, tilted about y and along y.
+        let u = Vector3::new(depth, 0.0006, -0.15 * depth);
+        let v = Vector3::new(0.0, 0.062, -0.0084);
+        let o = Vector3::new(-0.001, -0.001, 0.0857) - u * out_u - v * out_v;
+        let (u, v) = (u * (1.0 + out_u), v * (1.0 + 2.0 * out_v));
+        let text = format!(
+            r#"name = "oblique"
+[body]
+box = [[0.0, 0.0, 0.0], [0.03, 0.06, 0.2]]
+levels = [[3, 5, 11]]
+element = "{element}"
+[material]
+young = 3.0e5
+poisson = 0.45
+density = 1070.0
+[[cut]]
+origin = [{}, {}, {}]
+u = [{}, {}, {}]
+v = [{}, {}, {}]
+[[fix]]
+min = [-inf, -inf, 0.0]
+max = [inf, inf, 0.0]
+displacement = [0.0, 0.0, 0.0]
+[gravity]
+acceleration = [9.81, 2.0, -3.0]
+[analysis]
+type = "static"
+[[probe]]
+points = [[0.0, 0.03, 0.2], [0.03, 0.03, 0.2], [0.006, 0.018, 0.095], [0.024, 0.042, 0.09]]
+"#,
+            o.x, o.y, o.z, u.x, u.y, u.z, v.x, v.y, v.z
+        );
+        let scene = Scene::parse(&text, Path::new("oblique.toml")).unwrap();
+        let r = solve_scene(&scene, 0, None, false)
+            .unwrap_or_else(|e| panic!("{element} depth {depth}: {e}"));
+        assert!(r.model.cut.as_ref().unwrap().n_tip() > 0);
+        probe_values(&scene, &r).unwrap()
+    };
+    for element in ["tet4", "tet10"] {
+        // Fronts at x ≈ 0.0074 (in the first element column) and ≈ 0.0125.
+        for depth in [0.0084, 0.0135] {
+            let near = scene(element, depth, 0.0, 0.0);
+            for (out_u, out_v) in [(0.4, 0.0), (0.0, 0.3), (0.7, 0.5)] {
+                let far = scene(element, depth, out_u, out_v);
+                let scale = near.iter().map(|p| p.norm()).fold(0.0, f64::max);
+                let diff = near
+                    .iter()
+                    .zip(&far)
+                    .map(|(a, b)| (a - b).norm())
+                    .fold(0.0, f64::max);
+                println!(
+                    "{element} depth {depth}, patch on by {out_u}, {out_v}: {:.1e}",
+                    diff / scale
+                );
+                assert!(
+                    diff <= 1e-10 * scale,
+                    "{element} depth {depth}: {:e}",
+                    diff / scale
+                );
+            }
+        }
+    }
+}

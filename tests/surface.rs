@@ -411,3 +411,74 @@ fn the_gmsh_curved_incision_case_runs_static_linear_and_corotational() {
         );
     }
 }
+
+/// An oblique patch entering through the face x = 0 just outside it (its
+/// edge there at x = −0.05, tilted 20°): the feet of that face's nodes on
+/// one side lie past that edge, which is not front. As triangles (the
+/// closest feature decides) it has the set-up and solution of the same
+/// patch running on far outside the body (before: ψ > 0 at those nodes,
+/// ahead of the front, and a different set-up).
+#[test]
+fn an_oblique_patch_entering_through_a_face_as_triangles_equals_it_running_on_outside() {
+    let mesh = bar([3, 3, 6]);
+    let (c, s) = (20f64.to_radians().cos(), 20f64.to_radians().sin());
+    let near = PlanarPatch {
+        origin: Point3::new(-0.05, -0.1, 1.1),
+        u: Vector3::new(0.55 * c, 0.0, 0.55 * s),
+        v: Vector3::new(0.0, 1.2, 0.0),
+    };
+    // The same plane and front, running on by 2 outside x = 0 and by 1 in ±y.
+    let u_dir = near.u / near.u.norm();
+    let far = PlanarPatch {
+        origin: near.origin - u_dir * 2.0 - Vector3::new(0.0, 1.0, 0.0),
+        u: near.u + u_dir * 2.0,
+        v: Vector3::new(0.0, 3.2, 0.0),
+    };
+    let reference = setup_cut(&mesh, &[CutInput::tip(&far, DEFAULT_SNAP, None)]).unwrap();
+    assert!(reference.n_tip() > 0 && reference.n_partial() > 0);
+    let m_ref = model(
+        &mesh,
+        Some(reference.clone()),
+        Formulation::Linear,
+        Vector3::new(-9.81, 0.0, 0.0),
+        None,
+        false,
+    )
+    .unwrap();
+    let d_ref = solve(&m_ref);
+    let dir = tempfile::tempdir().unwrap();
+    for n in [1, 3] {
+        let (v, tris) = patch_triangles(&near, n);
+        let file = dir.path().join(format!("entering{n}.stl"));
+        std::fs::write(&file, ascii_stl(&v, &tris)).unwrap();
+        let surface = TriangleSurface::read(&file).unwrap();
+        for (name, input) in [
+            ("patch", CutInput::tip(&near, DEFAULT_SNAP, None)),
+            ("triangles", CutInput::tip(&surface, DEFAULT_SNAP, None)),
+        ] {
+            let setup = setup_cut(&mesh, &[input]).unwrap();
+            let psi_diff = setup
+                .front_level
+                .iter()
+                .zip(&reference.front_level)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            assert!(
+                psi_diff <= 1e-12,
+                "{name} {n} × {n}: ψ differs by {psi_diff:e}"
+            );
+            let m = model(
+                &mesh,
+                Some(setup),
+                Formulation::Linear,
+                Vector3::new(-9.81, 0.0, 0.0),
+                None,
+                false,
+            )
+            .unwrap();
+            let diff = relative_difference(&m_ref, &d_ref, &m, &solve(&m));
+            println!("{name} {n} × {n}: ψ within {psi_diff:.1e}, solution within {diff:.1e}");
+            assert!(diff <= 1e-10, "{name} {n} × {n}: {diff:e}");
+        }
+    }
+}
