@@ -83,6 +83,7 @@ fn bad_input_gives_one_line_errors_naming_the_key() {
         (GOOD.replace("levels = [[1, 2, 4]]", "levels = [[1, 0, 4]]"), "body.levels"),
         (GOOD.replace("[gravity]", "[gravity]\nacceleration2 = 1"), "gravity.acceleration2"),
         (GOOD.replace("[[probe]]\npoints = [[0.0, 0.03, 0.2], [0.03, 0.06, 0.2]]", "[[probe]]\npoints = [[1.0, 0.03, 0.2]]"), "probe 0"),
+        (GOOD.replace("[[probe]]\npoints = [[0.0, 0.03, 0.2], [0.03, 0.06, 0.2]]", "[[probe]]\npoints = []"), "probe[0].points"),
         (GOOD.replace("density = 1070.0", "density = 1070.0\n[[cut]]\norigin = [0.0, 0.0, 0.1]\nu = [0.0, 0.0, 0.0]\nv = [0.0, 0.06, 0.0]"), "cut[0].v"),
         ("name = \"x\"\n[body\n".to_string(), "syntax"),
     ];

@@ -484,6 +484,12 @@ pub fn validate(case: CaseFile, path: &Path) -> Result<Scene, SceneError> {
     // [[probe]]
     let mut probes = Vec::new();
     for (i, p) in case.probe.into_iter().enumerate() {
+        if p.points.is_empty() {
+            return Err(c.err(
+                format!("probe[{i}].points"),
+                "is empty: a [[probe]] lists at least one point",
+            ));
+        }
         for x in p.points {
             probes.push(Point3::from(c.finite3(&format!("probe[{i}].points"), x)?));
         }
