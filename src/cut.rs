@@ -708,12 +708,25 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
             for face in TET_FACES {
                 let tri = face.map(|k| v[k]);
                 if tri.iter().all(|&j| phi[j] == 0.0) {
-                    let c = Point3::from(
-                        tri.iter()
-                            .fold(Vector3::zeros(), |s, &j| s + mesh.nodes[j].coords)
-                            / 3.0,
-                    );
-                    if !surface.contains(&c, 1e-9) {
+                    let inside = if front.is_some() {
+                        // Tip mode lifted the faces the front crosses: this
+                        // one is inside the surface or outside it whole.
+                        let c = Point3::from(
+                            tri.iter()
+                                .fold(Vector3::zeros(), |s, &j| s + mesh.nodes[j].coords)
+                                / 3.0,
+                        );
+                        surface.contains(&c, 1e-9)
+                    } else {
+                        // Extended front: a face the front crosses opens
+                        // whole, as the plane moved off the layer to either
+                        // side opens the elements beside it (their sections
+                        // overlap the surface); its centroid decided before,
+                        // and the cut ended a face short or long.
+                        let pts = tri.map(|j| mesh.nodes[j]);
+                        surface.overlaps(&pts, 2.0 * lift_distance(snap) * mesh.element_size(e))
+                    };
+                    if !inside {
                         ok = false;
                     }
                 }

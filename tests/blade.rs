@@ -1025,8 +1025,10 @@ fn a_bordered_sweep_follows_the_refactorised_trajectory() {
     use xfem_cut::study::fixtures::{beam_mesh, seed_blade};
     // The seed's blade opening its cut on the beam during [0.1, 0.6] s, then
     // 0.7 s more: long enough after the last event for its border's steps
-    // to cost a factorisation (refactorised then).
-    let mesh = beam_mesh([3, 6, 10], false);
+    // to cost a factorisation (refactorised then). Three element columns
+    // under the cut: the extended front (on the node layer z = 0.1) opens
+    // the layer's faces a column at a time, three events.
+    let mesh = beam_mesh([6, 6, 10], false);
     let cuts = seed_blade(0.1, 0.6);
     let probes = [
         Point3::new(0.0, 0.03, 0.2),
