@@ -519,8 +519,8 @@ impl CutSet {
 /// [`crate::cut`]) can then change only where f passes
 /// - the lowest t of its polygon inside the strip 0 ≤ s ≤ 1 (it becomes cut),
 /// - the highest t of its polygon (it stops containing the front),
-/// - the t of the centroid of a face lying in the plane (a node on the cut
-///   may become enriched);
+/// - the lowest t of a face lying in the plane inside the strip (the face
+///   opens: a node on the cut may become enriched);
 ///
 /// the enrichment follows the classification. These critical fractions are
 /// computed once; a step is checked only when (f_prev, f_now] holds one (with
@@ -621,12 +621,13 @@ impl SweepIndex {
                 for face in crate::mesh::TET_FACES {
                     let tri = face.map(|k| v[k]);
                     if tri.iter().all(|&j| phi[j] == 0.0) {
-                        let c = Point3::from(
-                            tri.iter()
-                                .fold(Vector3::zeros(), |s, &j| s + mesh.nodes[j].coords)
-                                / 3.0,
-                        );
-                        critical.push(p.coordinates(&c).1);
+                        // An extended front opens such a face once the patch
+                        // overlaps it ([`crate::cut`]).
+                        let st: Vec<(f64, f64)> =
+                            tri.iter().map(|&j| p.coordinates(&mesh.nodes[j])).collect();
+                        if let Some((onset, _)) = clipped_t_range(&st, 0.0, 1.0) {
+                            critical.push(onset);
+                        }
                     }
                 }
             }
