@@ -2,10 +2,12 @@
 //! them: an oblique planar cut whose front lies inside elements at any
 //! angle, each front treatment, Tet4 and Tet10, linear and corotational,
 //! static and dynamic, other materials and loads. Each scene must solve, give
-//! the same probes when the whole scene is moved far from the origin, and the
-//! same probes when its patch is given as an ASCII STL. (Random scenes found
-//! both: a dense group's rotated positions were measured from the origin, and
-//! STL vertices were read in single precision.)
+//! the same probes when the whole scene is moved far from the origin, when
+//! its patch is given as an ASCII STL, and when the patch ends just outside
+//! the body. (Random scenes found all three: a dense group's rotated
+//! positions were measured from the origin, STL vertices were read in single
+//! precision, and the feet of nodes past a patch edge outside the body were
+//! taken as ahead of the front.)
 
 mod common;
 use common::largest_difference;
@@ -59,6 +61,10 @@ struct Random {
     pull: Option<Vector3<f64>>,
     front: &'static str,
     corners: [Point3<f64>; 4],
+    /// The same patch ending just outside the body (its section by the
+    /// plane, 1 % of the body's smallest side beyond): the feet of nodes off
+    /// the plane fall past its edges there, which are not front.
+    tight: [Point3<f64>; 4],
     probes: Vec<Point3<f64>>,
 }
 
@@ -89,6 +95,34 @@ impl Random {
             p + big * t2,
             p - big * t1 + big * t2,
         ];
+        // The plane's section of the box, in (s, r) = ((p − x)·t1, (x − p)·t2).
+        let corner = |i: usize| {
+            Point3::new(
+                if i & 1 == 0 { 0.0 } else { size.x },
+                if i & 2 == 0 { 0.0 } else { size.y },
+                if i & 4 == 0 { 0.0 } else { size.z },
+            )
+        };
+        let (mut s_max, mut r_max) = (0.0f64, 0.0f64);
+        for i in 0..8 {
+            for bit in [1, 2, 4] {
+                let (a, b) = (corner(i), corner(i | bit));
+                let (fa, fb) = ((a - p).dot(&normal), (b - p).dot(&normal));
+                if i & bit == 0 && fa * fb < 0.0 {
+                    let x = a + (b - a) * (fa / (fa - fb));
+                    s_max = s_max.max((p - x).dot(&t1));
+                    r_max = r_max.max((x - p).dot(&t2).abs());
+                }
+            }
+        }
+        let margin = 0.01 * size.min();
+        let (s_t, r_t) = (s_max + margin, r_max + margin);
+        let tight = [
+            p - s_t * t1 - r_t * t2,
+            p - r_t * t2,
+            p + r_t * t2,
+            p - s_t * t1 + r_t * t2,
+        ];
         let front = ["tip", "extend", "radius"][(k / 4) % 3];
         Random {
             size,
@@ -112,6 +146,7 @@ impl Random {
             }),
             front,
             corners,
+            tight,
             probes: (0..3)
                 .map(|_| {
                     Point3::new(
@@ -125,12 +160,15 @@ impl Random {
     }
 
     fn toml(&self, offset: Vector3<f64>, stl: Option<&str>) -> String {
+        self.toml_with(&self.corners, offset, stl)
+    }
+
+    fn toml_with(&self, c: &[Point3<f64>; 4], offset: Vector3<f64>, stl: Option<&str>) -> String {
         let at = |p: Point3<f64>| {
             let q = p + offset;
             format!("[{:e}, {:e}, {:e}]", q.x, q.y, q.z)
         };
         let vec = |v: Vector3<f64>| format!("[{:e}, {:e}, {:e}]", v.x, v.y, v.z);
-        let c = &self.corners;
         let mut cut = match stl {
             Some(file) => format!("[[cut]]\nsurface = \"{file}\"\n"),
             None => format!(
@@ -221,15 +259,25 @@ fn random_oblique_cuts_solve_and_move_and_read_as_stl_unchanged() {
         )
         .unwrap();
         let stl = probes(&scene.toml(offset, Some("patch.stl")), dir.path());
-        let (d_moved, d_stl) = (
+        let tight = probes(
+            &scene.toml_with(&scene.tight, Vector3::zeros(), None),
+            dir.path(),
+        );
+        let (d_moved, d_stl, d_tight) = (
             largest_difference(&here, &moved),
             largest_difference(&moved, &stl),
+            largest_difference(&here, &tight),
         );
         println!(
-            "{k:2} {}: moved {d_moved:.1e}, as STL {d_stl:.1e}",
+            "{k:2} {}: moved {d_moved:.1e}, as STL {d_stl:.1e}, ending just outside {d_tight:.1e}",
             scene.label()
         );
         assert!(d_moved <= 1e-9, "{k} {}: moved {d_moved:e}", scene.label());
         assert!(d_stl <= 1e-10, "{k} {}: as STL {d_stl:e}", scene.label());
+        assert!(
+            d_tight <= 1e-10,
+            "{k} {}: ending just outside {d_tight:e}",
+            scene.label()
+        );
     }
 }
