@@ -498,7 +498,8 @@ fn lift_distance(snap: f64) -> f64 {
 
 /// A face lying in the surface (φ = 0 at its three vertices, on a node
 /// layer or snapped onto it) that the front crosses (ψ of both strict signs
-/// at its vertices) could only be cut whole or not at all: the cut would end
+/// at its vertices), or touches from behind (ψ < 0 and ψ = 0), could only be
+/// cut whole or not at all, and held no front: the cut would end
 /// at a node line up to an element away from where it is given. Its nodes
 /// (Tet10: the mid-nodes of the edges in the surface from them too) are
 /// moved [`lift_distance`] · h off the surface, on the side they came from
@@ -523,7 +524,10 @@ fn lift_faces_the_front_crosses(
                 continue;
             }
             let g = tri.map(|j| front_level[j]);
-            if g.iter().any(|&x| x < 0.0) && g.iter().any(|&x| x > 0.0) {
+            // Crossed by the front, or behind it with the front along its
+            // edge or through its vertex (a front on a node line in a node
+            // layer): the elements beside it then hold the front.
+            if g.iter().any(|&x| x < 0.0) && g.iter().any(|&x| x >= 0.0) {
                 for j in tri {
                     lift[j] = true;
                 }
@@ -639,9 +643,19 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
             let tol = 1e-12 * mesh.element_size(e);
             let (lo, hi) = section_range(&p, &f, &g);
             if hi <= tol {
+                // Behind the front. Where the front runs along the section's
+                // boundary (a front on element faces or edges: a cut ending
+                // on a node line, or through the faces around a hexahedron's
+                // diagonal) the element holds it as a front element does, so
+                // that the front keeps its branch functions there: the same
+                // front a little behind runs through these elements (without
+                // them the result jumped by 3–7 % between the two, static,
+                // and a blade's energy by 5–9 % as its front reached them).
+                let holds_front = hi >= -tol && lo < -tol;
+                front_element[e] |= holds_front;
                 elements.push(ElementCut::Cut {
                     sub_tets: split_tet(&p, &f),
-                    partial: false,
+                    partial: holds_front,
                 });
             } else if lo >= -tol {
                 elements.push(ElementCut::Uncut);
@@ -1188,21 +1202,25 @@ mod tests {
         for nz in [14, 13] {
             let m = box_mesh(Point3::origin(), Point3::new(0.03, 0.06, 0.2), [2, 4, nz]);
             let (hx, hz) = (0.015, 0.2 / nz as f64);
-            // Topological: no element has the front inside it.
-            let c = setup_cut(&m, &[CutInput::tip(&s, DEFAULT_SNAP, None)]).unwrap();
-            assert_eq!((c.n_tip(), c.n_partial()), (0, 0), "nz = {nz}");
-            // Geometric: the nodes within one element of the front line.
-            let c = setup_cut(&m, &[CutInput::tip(&s, DEFAULT_SNAP, Some(hz.min(hx)))]).unwrap();
-            assert!(c.n_tip() > 0, "nz = {nz}: no tip nodes");
-            for i in 0..m.n_nodes() {
-                let p = m.nodes[i];
-                if c.tip[i].is_some() {
-                    // Only vertices of elements touching the line x = 0.015, z = 0.1.
-                    assert!(
-                        (p.x - 0.015).abs() <= hx + 1e-12 && (p.z - 0.1).abs() <= hz + 1e-12,
-                        "nz = {nz}: tip node at {p:?}"
-                    );
-                    assert!(c.enriched[i].is_none());
+            // Topological: the elements behind the front that it runs along
+            // hold it (as the same front a little behind runs through them);
+            // geometric: the nodes within one element of the front line.
+            for radius in [None, Some(hz.min(hx))] {
+                let c = setup_cut(&m, &[CutInput::tip(&s, DEFAULT_SNAP, radius)]).unwrap();
+                assert!(c.n_tip() > 0, "nz = {nz}, {radius:?}: no tip nodes");
+                if radius.is_none() {
+                    assert!(c.n_partial() > 0, "nz = {nz}: no front elements");
+                }
+                for i in 0..m.n_nodes() {
+                    let p = m.nodes[i];
+                    if c.tip[i].is_some() {
+                        // Only vertices of elements touching the line x = 0.015, z = 0.1.
+                        assert!(
+                            (p.x - 0.015).abs() <= hx + 1e-12 && (p.z - 0.1).abs() <= hz + 1e-12,
+                            "nz = {nz}: tip node at {p:?}"
+                        );
+                        assert!(c.enriched[i].is_none());
+                    }
                 }
             }
             // The patch's edges on the outer faces (x = 0, y = 0, y = 0.06)

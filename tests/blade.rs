@@ -303,13 +303,14 @@ fn cut_progressive_settles_to_the_static_full_cut() {
     // Cut cells: fully cut (flag 2) and front cells (flag 3, split by the
     // front). Mid-sweep the front lies inside the first element column (the
     // whole cut is one element wide at level 0); at the end it lies on the
-    // node plane x = 0.015 and every cut cell is fully cut.
+    // node plane x = 0.015, held by the elements behind it that it runs along
+    // (front cells too, as on the way there).
     let lines = |k| cells(k, 4.0);
     let (full, front) = (|k| cells(k, 2.0), |k| cells(k, 3.0));
     assert_eq!((lines(0), lines(20)), (0, 0));
     assert_eq!(lines(3), 1);
     assert!(
-        full(0) + front(0) == 0 && front(3) > 0 && full(20) > 0 && front(20) == 0,
+        full(0) + front(0) == 0 && front(3) > 0 && full(20) > 0 && front(20) > 0,
         "{} {} {} {}",
         full(0) + front(0),
         front(3),
@@ -340,6 +341,10 @@ fn cut_progressive_settles_to_the_static_full_cut() {
         })
     };
     println!("  tip (default): largest energy change at an event: kinetic {:.1e}, strain {:.1e} (relative)", jumps(sw).0, jumps(sw).1);
+    // Kinetic + strain: 3.5e-3 at most; 8.9e-2 when the front reaching the
+    // node plane x = 0.015 lost its branch functions (and 5.1e-2 at t = 0.35 s,
+    // where it runs along the faces around the hexahedra's diagonals).
+    assert!(sw.largest_energy_jump() <= 1e-2, "{sw}");
     let extended = CutSet {
         front: xfem_cut::cut::FrontMode::Extend,
         ..case::load(&path).1

@@ -232,7 +232,9 @@ fn damped_newton_iterations_of_the_shipped_scenes_are_pinned() {
         println!("{file}: exact {se} {:?}", runs(&exact));
         println!("{file}: R K Rᵀ {sc} {:?}", runs(&corotated));
         let want = match file {
-            "bend_dynamic.toml" => (170, 284),
+            // The seed's front on the node plane x = 0.015 is held by the
+            // elements behind it (tip nodes): R K Rᵀ takes 15 more.
+            "bend_dynamic.toml" => (170, 299),
             "bend_dynamic_uncut.toml" => (170, 284),
             _ => (46, 72),
         };
@@ -247,7 +249,7 @@ fn damped_newton_iterations_of_the_shipped_scenes_are_pinned() {
 /// Newton step to the tolerance's level, and a factorisation serves many
 /// steps. Pinned (AMD, one thread: deterministic): Newton iterations and
 /// factorisations over the 60 steps of the bend cases' ramp and after it,
-/// the 30 of `free_slice` — 326 / 27, 306 / 27 and 118 / 25, against 170,
+/// the 30 of `free_slice` — 330 / 26, 306 / 27 and 118 / 25, against 170,
 /// 170 and 89 factorisations refactorising (one per iteration).
 #[test]
 fn the_default_lagged_step_of_the_shipped_scenes_is_pinned() {
@@ -281,7 +283,7 @@ fn the_default_lagged_step_of_the_shipped_scenes_is_pinned() {
         );
         assert!(worst < 1e-7, "{file}: {worst:e}");
         let want = match file {
-            "bend_dynamic.toml" => (326, 27),
+            "bend_dynamic.toml" => (330, 26),
             "bend_dynamic_uncut.toml" => (306, 27),
             _ => (118, 25),
         };
@@ -430,11 +432,14 @@ fn the_lagged_factor_step_follows_the_refactorising_step() {
         );
         assert_eq!(cg, 0);
         assert!(worst < 1e-7, "k = {every}: {worst:e}");
-        assert!(factorisations >= 100 / every, "{factorisations}");
-        assert!(
-            factorisations <= 100 / every + 10,
-            "k = {every}: {factorisations}"
-        );
+        // Pinned (AMD, one thread): 100, 24 and 16 — the age's 100 / k and
+        // the refactorisations after 8 iterations on one factor in the ramp.
+        let want = match every {
+            1 => 100,
+            5 => 24,
+            _ => 16,
+        };
+        assert_eq!(factorisations, want, "k = {every}");
     }
 }
 
