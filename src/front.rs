@@ -100,14 +100,7 @@ type BoxedTriangle = ([Point3<f64>; 3], Point3<f64>, Point3<f64>);
 /// faces, e.g. a cut ending on a node line); segments on the body's outer
 /// faces or outside it are not front.
 pub fn front_segments(mesh: &TetMesh, boundary: &[[Point3<f64>; 2]]) -> Vec<[Point3<f64>; 2]> {
-    let boxes: Vec<(Point3<f64>, Point3<f64>)> = (0..mesh.n_elements())
-        .map(|e| {
-            let p = mesh.vertex_points(e);
-            let lo = p.iter().fold(p[0], |a, b| a.inf(b));
-            let hi = p.iter().fold(p[0], |a, b| a.sup(b));
-            (lo, hi)
-        })
-        .collect();
+    let boxes = element_boxes(mesh);
     // The body's outer faces (with their bounding boxes): a segment piece on
     // them is not front.
     let outer: Vec<BoxedTriangle> = mesh
@@ -142,6 +135,18 @@ pub fn front_segments(mesh: &TetMesh, boundary: &[[Point3<f64>; 2]]) -> Vec<[Poi
         .collect()
 }
 
+/// Each element's bounding box (lower, upper corner).
+fn element_boxes(mesh: &TetMesh) -> Vec<(Point3<f64>, Point3<f64>)> {
+    (0..mesh.n_elements())
+        .map(|e| {
+            let p = mesh.vertex_points(e);
+            let lo = p.iter().fold(p[0], |a, b| a.inf(b));
+            let hi = p.iter().fold(p[0], |a, b| a.sup(b));
+            (lo, hi)
+        })
+        .collect()
+}
+
 /// The front segments with every end where the front leaves the body (the
 /// segment continued a little beyond it is in no element) carried on along
 /// the segment, by the body's diagonal: the front's continuation outside the
@@ -152,14 +157,7 @@ pub fn front_segments(mesh: &TetMesh, boundary: &[[Point3<f64>; 2]]) -> Vec<[Poi
 pub fn extend_front_exits(mesh: &TetMesh, front: &[[Point3<f64>; 2]]) -> Vec<[Point3<f64>; 2]> {
     let (lo, hi) = mesh.bounding_box();
     let diagonal = (hi - lo).norm();
-    let boxes: Vec<(Point3<f64>, Point3<f64>)> = (0..mesh.n_elements())
-        .map(|e| {
-            let p = mesh.vertex_points(e);
-            let lo = p.iter().fold(p[0], |a, b| a.inf(b));
-            let hi = p.iter().fold(p[0], |a, b| a.sup(b));
-            (lo, hi)
-        })
-        .collect();
+    let boxes = element_boxes(mesh);
     let in_body = |x: &Point3<f64>| {
         (0..mesh.n_elements()).any(|e| {
             let (lo, hi) = boxes[e];
