@@ -136,6 +136,9 @@ impl Blade {
         };
         // A path's completed strip must be a surface (every prefix of it then is).
         if !blade.is_straight() {
+            blade
+                .check_forward()
+                .map_err(|message| err("path", message))?;
             blade.strip(blade.end()).map_err(|e| {
                 err(
                     "path",
@@ -200,6 +203,53 @@ impl Blade {
             }
         }
         k[k.len() - 1].1
+    }
+
+    /// A path whose edge turns back over the surface it has swept (an end
+    /// moving backwards within a segment, or the edge reversing at a
+    /// keyframe) folds its strip onto itself: the swept surface is then not
+    /// the strip, and the level set's sign flips where the strip faces the
+    /// other way. Consecutive triangles of the completed strip share an edge;
+    /// the strip folds where they meet at a dihedral angle under
+    /// [`FOLD_ANGLE`] (a flat strip: 180°; a U-turn through a side of the
+    /// body: two 90° bends, which are fine).
+    fn check_forward(&self) -> Result<(), String> {
+        let [a0, b0] = self.keyframes[0].1;
+        let scale = (b0 - a0).norm();
+        let mut last: Option<[Point3<f64>; 3]> = None;
+        for (k, w) in self.keyframes.windows(2).enumerate() {
+            let ([a0, b0], [a1, b1]) = (w[0].1, w[1].1);
+            // Within the segment: both ends move forward (or stay), forward
+            // being the mean motion across the edge.
+            let e = (b0 - a0).normalize();
+            let across = |v: Vector3<f64>| v - e * v.dot(&e);
+            let (va, vb) = (a1 - a0, b1 - b0);
+            let f = across(va + vb);
+            let stays = |v: Vector3<f64>| v.norm() <= 1e-12 * scale;
+            if f.norm() > 1e-12 * scale && [va, vb].iter().any(|&v| !stays(v) && v.dot(&f) < 0.0) {
+                return Err(format!(
+                    "the edge turns back over the surface it has swept between keyframes {k} and {} (one end moves backwards): give keyframes along which every point of the edge moves forward",
+                    k + 1
+                ));
+            }
+            for tri in [[a0, b0, b1], [a0, b1, a1]] {
+                let area = (tri[1] - tri[0]).cross(&(tri[2] - tri[0])).norm();
+                if area <= 1e-12 * scale * scale {
+                    continue;
+                }
+                if let Some(angle) = last.and_then(|prev| dihedral(&prev, &tri)) {
+                    if angle < FOLD_ANGLE {
+                        return Err(format!(
+                            "the edge turns back over the surface it has swept by keyframe {} (the strip folds to {:.0}°: an end moves backwards, or the edge reverses): give keyframes along which every point of the edge moves forward",
+                            k + 1,
+                            angle.to_degrees()
+                        ));
+                    }
+                }
+                last = Some(tri);
+            }
+        }
+        Ok(())
     }
 
     /// Whether the sweep is a translation of the edge between two keyframes.
@@ -320,6 +370,30 @@ fn weld(
     }
     let triangles = triangles.into_iter().map(|t| t.map(|i| map[i])).collect();
     (kept, triangles)
+}
+
+/// The smallest dihedral angle at which two consecutive triangles of a
+/// path's strip may meet (radians; 45°): below it the strip folds back onto
+/// what it has swept.
+pub const FOLD_ANGLE: f64 = std::f64::consts::FRAC_PI_4;
+
+/// The dihedral angle (0 … π) between two triangles sharing an edge (two
+/// bit-identical corners), `None` if they share none.
+fn dihedral(p: &[Point3<f64>; 3], q: &[Point3<f64>; 3]) -> Option<f64> {
+    let shared: Vec<Point3<f64>> = p.iter().filter(|x| q.contains(x)).copied().collect();
+    let [s0, s1] = shared[..] else {
+        return None;
+    };
+    let apex = |t: &[Point3<f64>; 3]| t.iter().find(|x| **x != s0 && **x != s1).copied();
+    let (r, t) = (apex(p)?, apex(q)?);
+    let e = (s1 - s0).normalize();
+    let off = |x: Point3<f64>| {
+        let w = x - s0;
+        w - e * w.dot(&e)
+    };
+    let (u, v) = (off(r), off(t));
+    let c = u.dot(&v) / (u.norm() * v.norm());
+    c.is_finite().then(|| c.clamp(-1.0, 1.0).acos())
 }
 
 /// A blade's swept surface at some time.

@@ -207,6 +207,35 @@ fn bad_blades_are_errors_naming_the_key() {
         e.contains("cut[1]") && e.contains("`times`") && e.contains("out of order"),
         "{e}"
     );
+    // A path whose edge turns back over what it has swept: one end moving
+    // backwards (a pivot about the edge's middle), or the edge reversing.
+    let (a, b) = (p.origin, p.origin + p.u);
+    let pivot = Blade::new(
+        4,
+        vec![
+            (0.0, [a, b]),
+            (0.5, [a + p.v * 0.5, b + p.v * 0.5]),
+            (1.0, [a + p.v * 0.4, b + p.v * 1.2]),
+        ],
+    );
+    let e = msg(pivot);
+    assert!(
+        e.contains("cut[4]")
+            && e.contains("`path`")
+            && e.contains("turns back")
+            && e.contains("between keyframes 1 and 2"),
+        "{e}"
+    );
+    let back = Blade::new(
+        0,
+        vec![
+            (0.0, [a, b]),
+            (0.5, [a + p.v * 0.5, b + p.v * 0.5]),
+            (1.0, [a + p.v * 0.2, b + p.v * 0.2]),
+        ],
+    );
+    let e = msg(back);
+    assert!(e.contains("turns back") && e.contains("folds to 0°"), "{e}");
     let e = msg(Blade::straight(0, p.origin, p.origin, p.v, 0.0, 1.0));
     assert!(e.contains("`blade`") && e.contains("zero length"), "{e}");
 
