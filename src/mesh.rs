@@ -187,9 +187,33 @@ pub fn tet_volume(p: &[Point3<f64>; 4]) -> f64 {
 
 /// Barycentric coordinates of `x` in the tetrahedron `p`.
 pub fn barycentric(p: &[Point3<f64>; 4], x: &Point3<f64>) -> Option<[f64; 4]> {
-    let m = Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]);
-    let l = m.try_inverse()? * (x - p[0]);
-    Some([1.0 - l.x - l.y - l.z, l.x, l.y, l.z])
+    Some(BarycentricMap::new(p)?.at(x))
+}
+
+/// The affine map from points to the barycentric coordinates of one
+/// tetrahedron, inverted once for many points ([`barycentric`] per point
+/// inverts the same matrix each time; the coordinates are bit for bit the same).
+#[derive(Debug, Clone, Copy)]
+pub struct BarycentricMap {
+    origin: Point3<f64>,
+    inverse: Matrix3<f64>,
+}
+
+impl BarycentricMap {
+    /// `None` for a degenerate tetrahedron.
+    pub fn new(p: &[Point3<f64>; 4]) -> Option<BarycentricMap> {
+        let m = Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]);
+        Some(BarycentricMap {
+            origin: p[0],
+            inverse: m.try_inverse()?,
+        })
+    }
+
+    /// Barycentric coordinates of `x`.
+    pub fn at(&self, x: &Point3<f64>) -> [f64; 4] {
+        let l = self.inverse * (x - self.origin);
+        [1.0 - l.x - l.y - l.z, l.x, l.y, l.z]
+    }
 }
 
 /// Structured mesh of the box `[lo, hi]` with `div` hexahedra per axis, each

@@ -17,7 +17,7 @@ use crate::cut::{psi, CutSetup, ElementCut};
 use crate::element::{barycentric_gradients, shape_gradients, shape_values};
 use crate::front::{self, N_BRANCH};
 use crate::material::{Lame, Material};
-use crate::mesh::{tet_volume, ElementKind, TetMesh, TET10_EDGES};
+use crate::mesh::{tet_volume, BarycentricMap, ElementKind, TetMesh, TET10_EDGES};
 use crate::quadrature::{self, QuadPoint};
 use crate::solve::Pattern;
 use nalgebra::{Matrix3, Point3, Vector3};
@@ -476,6 +476,7 @@ impl Model {
         };
         ElementEvaluator {
             kind: self.mesh.kind,
+            map: BarycentricMap::new(&verts),
             verts,
             dl,
             len: self.elements[e].shapes.len(),
@@ -605,6 +606,9 @@ pub const FRONT_SNAP: f64 = 1e-12;
 /// [`Model::element_evaluator`] and evaluated at many points without allocation.
 pub struct ElementEvaluator {
     kind: ElementKind,
+    /// Points to the element's barycentric coordinates (`None`: degenerate,
+    /// which no built model holds; the centroid stands in).
+    map: Option<BarycentricMap>,
     verts: [Point3<f64>; 4],
     dl: [Vector3<f64>; 4],
     len: usize,
@@ -629,7 +633,7 @@ impl ElementEvaluator {
     /// The level set φ at reference point `x` (interpolated from the
     /// element's vertices; 0 without a cut).
     pub fn phi_at(&self, x: &Point3<f64>) -> f64 {
-        let bary = crate::mesh::barycentric(&self.verts, x).unwrap_or([0.25; 4]);
+        let bary = self.map.map_or([0.25; 4], |m| m.at(x));
         self.shapes
             .as_ref()
             .map_or(0.0, |s| (0..4).map(|k| s.phi[k] * bary[k]).sum())
@@ -638,7 +642,7 @@ impl ElementEvaluator {
     /// Values and gradients of the shape functions at reference point `x`,
     /// on side `side` of the cut; `vals` and `grads` hold [`Self::len`] each.
     pub fn eval(&self, x: &Point3<f64>, side: i8, vals: &mut [f64], grads: &mut [Vector3<f64>]) {
-        let bary = crate::mesh::barycentric(&self.verts, x).unwrap_or([0.25; 4]);
+        let bary = self.map.map_or([0.25; 4], |m| m.at(x));
         match &self.shapes {
             Some(shapes) => shapes.eval(&bary, self.fixed_side.unwrap_or(side), vals, grads),
             None => {
@@ -656,7 +660,8 @@ impl ElementEvaluator {
 /// φ and ψ are interpolated linearly from the element's vertices.
 pub struct ElementShapes {
     kind: ElementKind,
-    verts: [Point3<f64>; 4],
+    /// Points to barycentric coordinates (`None`: a degenerate element).
+    map: Option<BarycentricMap>,
     dl: [Vector3<f64>; 4],
     /// Local nodes carrying the Heaviside enrichment (in shape order).
     pub heaviside: Vec<usize>,
@@ -728,9 +733,10 @@ impl ElementShapes {
                 front::branch_values(r, front::polar_angle(f, g, side))
             })
             .collect();
+        let verts = mesh.vertex_points(e);
         ElementShapes {
             kind: mesh.kind,
-            verts: mesh.vertex_points(e),
+            map: BarycentricMap::new(&verts),
             dl: *dl,
             heaviside,
             tip,
@@ -748,6 +754,12 @@ impl ElementShapes {
     /// Number of shape functions.
     pub fn len(&self) -> usize {
         self.kind.nodes() + self.heaviside.len() + N_BRANCH * self.tip.len()
+    }
+
+    /// Barycentric coordinates of `x` in the element (its centroid for a
+    /// degenerate element, which no built model holds).
+    pub fn bary(&self, x: &Point3<f64>) -> [f64; 4] {
+        self.map.map_or([0.25; 4], |m| m.at(x))
     }
 
     pub fn is_empty(&self) -> bool {
@@ -801,7 +813,9 @@ impl ElementShapes {
         // A point within round-off of the front is on it (r = 0: the tip
         // functions vanish, so the cut's opening is exactly 0 there rather
         // than √r of the interpolation's round-off, ~1e-8).
-        if f.hypot(g) <= FRONT_SNAP * self.size {
+        // (|(φ, ψ)|² against the snap², no hypot: this runs at every point.)
+        let snap = FRONT_SNAP * self.size;
+        if f * f + g * g <= snap * snap {
             (f, g) = (0.0, 0.0);
         }
         let (fv, fg) = front::branch_with_gradients(f, g, &self.grad_phi, &self.grad_psi, side);
@@ -876,7 +890,7 @@ impl ElementShapes {
 
     /// Barycentric coordinates (in the element) of the cell's vertices.
     fn vertices_from_cell(&self, cell: &[Point3<f64>; 4]) -> [Option<[f64; 4]>; 4] {
-        cell.map(|x| crate::mesh::barycentric(&self.verts, &x))
+        cell.map(|x| self.map.map(|m| m.at(&x)))
     }
 }
 
@@ -1290,7 +1304,7 @@ impl Integrator<'_> {
             let (mut int_n, mut int_n2) = ([0.0; 10], [0.0; 10]);
             let (columns, weights) = &mut sides[(cell.side + 1) as usize];
             for q in shapes.cell_rule(&cell.vertices) {
-                let bary = crate::mesh::barycentric(&cells.verts, &q.x).unwrap_or([0.25; 4]);
+                let bary = shapes.bary(&q.x);
                 let w = q.weight;
                 shapes.eval(&bary, cell.side, &mut vals, &mut gr);
                 if !self.stiffness {
