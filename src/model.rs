@@ -233,17 +233,31 @@ impl Model {
     }
 
     /// As [`Model::build`], choosing how Tet4 elements are integrated.
+    pub fn build_with(
+        input: ModelInput<'_>,
+        integration: Integration,
+    ) -> Result<Model, ModelError> {
+        Model::build_beside(input, integration, 1, |_, _| ()).map(|(model, ())| model)
+    }
+
+    /// As [`Model::build_with`], calling `beside` with the pattern and the
+    /// shape function of each equation (as [`crate::assembly::equation_shapes`])
+    /// as soon as they are known: on another thread, while the elements'
+    /// scatter maps are built, when `threads` > 1 (e.g. the fill-reducing
+    /// ordering and symbolic factorisation of a static solve).
     ///
     /// In named steps: per element, [`element_cells`] (its shape functions
     /// and integration cells, each cell's volume computed once) and
     /// [`Integrator::block`] (one walk over those cells: integration groups,
     /// loads, mass); then [`number_dofs`] (prescribed DOFs eliminated),
-    /// [`pattern_and_scatter`], the boundary tractions and the consistent
-    /// mass on the pattern.
-    pub fn build_with(
+    /// [`element_pattern`], [`scatters`] (beside `beside`), the boundary
+    /// tractions and the consistent mass on the pattern.
+    pub fn build_beside<T: Send>(
         input: ModelInput<'_>,
         integration: Integration,
-    ) -> Result<Model, ModelError> {
+        threads: usize,
+        beside: impl FnOnce(&Pattern, &[usize]) -> T + Send,
+    ) -> Result<(Model, T), ModelError> {
         let ModelInput {
             mesh,
             material,
@@ -285,7 +299,21 @@ impl Model {
             fixed.extend(enriched);
         }
         let (equation, prescribed, n_free) = number_dofs(n_shape, &fixed);
-        let (pattern, scatter) = pattern_and_scatter(&flat, &equation, n_free);
+        let pattern = element_pattern(&flat, &equation, n_free);
+        let beside = || {
+            let mut shapes = vec![0; n_free];
+            for (dof, &eq) in equation.iter().enumerate() {
+                if eq != NONE {
+                    shapes[eq as usize] = dof / 3;
+                }
+            }
+            beside(&pattern, &shapes)
+        };
+        let (scatter, beside) = if threads > 1 {
+            rayon::join(|| scatters(&flat, &equation, &pattern), beside)
+        } else {
+            (scatters(&flat, &equation, &pattern), beside())
+        };
         // Boundary tractions: ∫ t φ_a over the selected faces, standard shapes
         // here, the enriched ones once the model is built.
         for t in tractions {
@@ -336,7 +364,7 @@ impl Model {
             }
         }
         model.load = load;
-        Ok(model)
+        Ok((model, beside))
     }
 
     /// Adds `sign` ∫ t ψ_s dA over boundary face `face` (its corner nodes
@@ -1844,11 +1872,7 @@ fn element_scatter(
 /// neighbours (the shape functions it shares an element with, found through
 /// the shape → element incidence with a marker) give the rows of its
 /// components' columns, so no element entry is pushed and sorted twice.
-fn pattern_and_scatter(
-    flat: &FlatElements,
-    equation: &[u32],
-    n_free: usize,
-) -> (Pattern, Vec<u32>) {
+fn element_pattern(flat: &FlatElements, equation: &[u32], n_free: usize) -> Pattern {
     let n_shape = equation.len() / 3;
     // Shape function → elements (CSR).
     let mut start = vec![0usize; n_shape + 1];
@@ -1908,11 +1932,15 @@ fn pattern_and_scatter(
         row_idx[first..].sort_unstable();
         col_ptr.push(row_idx.len());
     }
-    let pattern = Pattern {
+    Pattern {
         n: n_free,
         col_ptr,
         row_idx,
-    };
+    }
+}
+
+/// Each element's scatter map into `pattern` ([`element_scatter`]).
+fn scatters(flat: &FlatElements, equation: &[u32], pattern: &Pattern) -> Vec<u32> {
     let mut scatter = vec![NONE; flat.scatter_len];
     let mut dofs = Vec::new();
     for el in &flat.elements {
@@ -1920,12 +1948,12 @@ fn pattern_and_scatter(
             el,
             &flat.shape_ids[el.shapes.clone()],
             equation,
-            &pattern,
+            pattern,
             &mut scatter,
             &mut dofs,
         );
     }
-    (pattern, scatter)
+    scatter
 }
 
 /// Adds `sign` × an element's consistent mass `me` (m × m, per shape

@@ -4,9 +4,10 @@
 use crate::blade::Blade;
 use crate::cut::{CutInput, CutSetup, CutSurface};
 use crate::mesh::TetMesh;
-use crate::model::{Model, ModelInput, Traction};
+use crate::model::{Integration, Model, ModelInput, Traction};
 use crate::plan::Plan;
 use crate::scene::{CutGeometry, FrontMode, Scene, SceneError};
+use crate::solve::Pattern;
 use crate::surface::TriangleSurface;
 use nalgebra::{Point3, Vector3};
 use std::time::Instant;
@@ -19,6 +20,20 @@ impl Scene {
     /// mesh whose model would not fit in memory, a fix or traction that
     /// selects nothing, and a static scene with a part that floats free.
     pub fn build(&self, mesh: TetMesh) -> Result<(Model, Plan), SceneError> {
+        self.build_beside(mesh, 1, |_, _| ())
+            .map(|(model, plan, ())| (model, plan))
+    }
+
+    /// As [`Scene::build`], calling `beside` with the pattern and each
+    /// equation's shape function while the model's scatter maps are built
+    /// ([`Model::build_beside`]: on another thread when `threads` > 1); the
+    /// plan's model time is the build's wall time with `beside` in it.
+    pub fn build_beside<T: Send>(
+        &self,
+        mesh: TetMesh,
+        threads: usize,
+        beside: impl FnOnce(&Pattern, &[usize]) -> T + Send,
+    ) -> Result<(Model, Plan, T), SceneError> {
         self.check_mesh_memory(&mesh)?;
         let t0 = Instant::now();
         let file = self.file();
@@ -31,12 +46,16 @@ impl Scene {
 
         let t2 = Instant::now();
         let n_elements = mesh.n_elements();
-        let model = self
-            .model_input(mesh, cut, fixed, &tractions)
-            .map_err(|source| SceneError::Model {
-                file: file.clone(),
-                source,
-            })?;
+        let (model, beside) = Model::build_beside(
+            self.input(mesh, cut, fixed, &tractions),
+            Integration::Grouped,
+            threads,
+            beside,
+        )
+        .map_err(|source| SceneError::Model {
+            file: file.clone(),
+            source,
+        })?;
         let t_model = t2.elapsed().as_secs_f64();
         if let Some(part) = model.free_parts().into_iter().next() {
             if !self.is_dynamic() {
@@ -44,7 +63,7 @@ impl Scene {
             }
         }
         let plan = Plan::new(self, &model, n_elements, [t_setup, t_cut, t_model]);
-        Ok((model, plan))
+        Ok((model, plan, beside))
     }
 
     /// The model of `mesh` with the cut set-up `cut` and the selections of
@@ -56,7 +75,17 @@ impl Scene {
         fixed: Fixed,
         tractions: &[Traction],
     ) -> Result<Model, crate::model::ModelError> {
-        Model::build(ModelInput {
+        Model::build(self.input(mesh, cut, fixed, tractions))
+    }
+
+    fn input<'a>(
+        &self,
+        mesh: TetMesh,
+        cut: Option<CutSetup>,
+        fixed: Fixed,
+        tractions: &'a [Traction],
+    ) -> ModelInput<'a> {
+        ModelInput {
             mesh,
             material: self.material,
             formulation: self.formulation,
@@ -66,7 +95,7 @@ impl Scene {
             body_force: None,
             tractions,
             need_mass: self.is_dynamic(),
-        })
+        }
     }
 
     /// The nodes the `[[fix]]` boxes select (with their prescribed

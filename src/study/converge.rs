@@ -364,7 +364,7 @@ pub fn converge_case(
         let wall = t0.elapsed().as_secs_f64();
         let t = result.timings;
         // Mesh reading is not precompute (FEniCSx times exclude it too).
-        let precompute = t.cut + t.model + t.symbolic;
+        let precompute = t.precompute();
         let locator = Locator::new(&result.model.mesh);
         let err = l2_error(&field, &result.model, &result.d, &locator).map_err(|e| {
             StudyError::from(e).during(format!("{}: {variant} L{level}", base.name))
