@@ -5,7 +5,8 @@
 //! median of 5; the first touches fresh memory), solve, entries of the
 //! factors, the separator's size and each solve's relative residual.
 //!
-//! `cargo run --release --example split_factor -- CASE.toml MESH.msh`
+//! `cargo run --release --example split_factor -- CASE.toml MESH.msh` (or a
+//! level of the case's own meshes instead of MESH.msh)
 use std::time::Instant;
 use xfem_cut::assembly::{equation_shapes, evaluate, Request, Rotations, Workspace};
 use xfem_cut::scene::Scene;
@@ -18,14 +19,21 @@ fn ms(t: Instant) -> f64 {
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let [case, mesh] = &args[..] else {
-        eprintln!("usage: split_factor CASE.toml MESH.msh");
+        eprintln!("usage: split_factor CASE.toml MESH.msh|LEVEL");
         std::process::exit(2);
     };
     let scene = Scene::load(std::path::Path::new(case)).expect("case");
-    let mut mesh = scene.read_mesh(std::path::Path::new(mesh)).expect("mesh");
-    if scene.element == xfem_cut::mesh::ElementKind::Tet10 {
-        mesh = mesh.to_tet10();
-    }
+    let mesh = match mesh.parse::<usize>() {
+        Ok(level) => scene.mesh(level).expect("mesh"),
+        Err(_) => {
+            let mesh = scene.read_mesh(std::path::Path::new(mesh)).expect("mesh");
+            if scene.element == xfem_cut::mesh::ElementKind::Tet10 {
+                mesh.to_tet10()
+            } else {
+                mesh
+            }
+        }
+    };
     let (m, _) = scene.build(mesh).expect("model");
     let blocks = equation_shapes(&m);
     let mut k = vec![0.0; m.pattern.nnz()];

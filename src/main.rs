@@ -161,6 +161,9 @@ fn run() -> Result<()> {
             if threads > 1 {
                 println!("threads: {threads} (XFEM_THREADS; factorisations and element loops)");
             }
+            if let Some(factor) = &result.factor {
+                println!("factor: {factor}");
+            }
             if t.steps > 0 {
                 println!(
                     "dynamic: {} steps in {:.1} ms ({:.3} ms/step), {} factorisations, Newton iterations per step max {}",

@@ -95,6 +95,9 @@ pub struct RunResult {
     /// the model of its time (the cut as it was, the blade edges as lines).
     pub sweep: Option<Sweep>,
     pub progressive_frames: Vec<(f64, VtuData)>,
+    /// How the system was factorised ([`Cholesky::describe`]); `None` for a
+    /// blade's sweep (one factor per cut event).
+    pub factor: Option<String>,
 }
 
 /// Solves `scene` at `level` (or on `mesh_override`) on one thread (the
@@ -172,6 +175,7 @@ pub fn solve_scene_with(
         plan.mesh_from(p);
     }
     let beside = threads > 1;
+    let factor = chol.describe();
     let mut timings = Timings {
         mesh: t_mesh,
         cut: plan.times[1],
@@ -210,6 +214,7 @@ pub fn solve_scene_with(
                 steps: None,
                 sweep: None,
                 progressive_frames: Vec::new(),
+                factor: Some(factor),
             })
         }
         Analysis::Dynamic {
@@ -272,6 +277,7 @@ pub fn solve_scene_with(
                 steps: Some(stats.summary()),
                 sweep: None,
                 progressive_frames: Vec::new(),
+                factor: Some(factor),
             })
         }
     }
@@ -351,6 +357,7 @@ fn solve_progressive(
         steps: None,
         sweep: Some(result.sweep),
         progressive_frames: frames,
+        factor: None,
     })
 }
 

@@ -576,6 +576,26 @@ impl Cholesky {
         })
     }
 
+    /// One line on how the factor is held, for a run's report: its entries,
+    /// and for a split one the separator and the sides.
+    pub fn describe(&self) -> String {
+        match &self.factor {
+            Factor::Whole(_) => format!(
+                "whole ({} equations, {} entries in L)",
+                self.pattern.n,
+                self.factor_nnz()
+            ),
+            Factor::Split(s) => {
+                let [a, b] = s.side_lens();
+                format!(
+                    "split at nested dissection's first separator ({} equations) into halves of {a} and {b} equations factorised side by side ({} entries)",
+                    s.separator_len(),
+                    self.factor_nnz()
+                )
+            }
+        }
+    }
+
     /// Whether the factor is held in two halves ([`Cholesky::split`]).
     pub fn is_split(&self) -> bool {
         matches!(self.factor, Factor::Split(_))

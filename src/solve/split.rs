@@ -369,6 +369,11 @@ impl SplitCholesky {
         self.separator.len()
     }
 
+    /// Equations of each side (the separator's not counted).
+    pub fn side_lens(&self) -> [usize; 2] {
+        [self.halves[0].n_side, self.halves[1].n_side]
+    }
+
     pub fn factorize(&mut self, values: &[f64]) -> Result<(), SolveError> {
         let [first, second] = &mut self.halves;
         let (a, b) = rayon::join(|| first.factorize(values), || second.factorize(values));
