@@ -419,6 +419,14 @@ pub const PARALLEL_FACTOR_FROM: usize = 40_000_000;
 /// Order from which [`Cholesky::fill_reducing`] takes nested dissection without comparing.
 pub const NESTED_DISSECTION_FROM: usize = 10_000;
 
+/// Order from which [`Cholesky::fill_reducing`] splits the factor on two
+/// threads or more. The seed beam's corotational tangent (median of 21
+/// numeric factorisations, split on 2 threads against the rule's whole
+/// factor on 1): 840 equations 1.11 against 0.80 ms, 2160 equations 2.32
+/// against 2.39 ms, 5460 (Tet10) 12.1 against 16.5 ms, 6552 (Tet4) 10.9
+/// against 18.3 ms, 12852 (Tet10) 45 against 72 ms.
+pub const SPLIT_FROM: usize = 4_000;
+
 /// Sparse Cholesky LLᵀ with the symbolic analysis done once.
 pub struct Cholesky {
     pattern: Pattern,
@@ -458,7 +466,7 @@ impl Cholesky {
     /// both, keeping the one with fewer non-zeros in L (AMD's analysis is
     /// cheap there, and the factor is refactorised every Newton iteration).
     ///
-    /// On two threads or more, from [`NESTED_DISSECTION_FROM`] equations on,
+    /// On two threads or more, from [`SPLIT_FROM`] equations on,
     /// the factor is split at nested dissection's first separator and its
     /// halves factorised side by side ([`Cholesky::split`]; faer's own
     /// threads share only the dense products inside a supernode). On the
@@ -472,7 +480,7 @@ impl Cholesky {
         blocks: Option<&[usize]>,
         parallelism: Parallelism,
     ) -> Result<Cholesky, SolveError> {
-        if parallelism.n_threads() >= 2 && pattern.n >= NESTED_DISSECTION_FROM {
+        if parallelism.n_threads() >= 2 && pattern.n >= SPLIT_FROM {
             if let Some(separated) = Ordering::separated(pattern, blocks)? {
                 return Cholesky::split(pattern, &separated, parallelism);
             }
@@ -1877,9 +1885,10 @@ mod tests {
     }
 
     #[test]
-    fn two_threads_split_the_factor_from_ten_thousand_equations() {
-        let (big, _) = grid(16, 3);
-        let (small, _) = grid(12, 3);
+    fn two_threads_split_the_factor_from_four_thousand_equations() {
+        let (big, _) = grid(12, 3);
+        let (small, _) = grid(10, 3);
+        assert!(small.n < SPLIT_FROM && big.n >= SPLIT_FROM);
         let blocks = |p: &Pattern| (0..p.n).map(|eq| eq / 3).collect::<Vec<_>>();
         let two = Parallelism::threads(2);
         assert!(Cholesky::fill_reducing(&big, Some(&blocks(&big)), two)
