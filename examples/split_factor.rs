@@ -72,8 +72,15 @@ fn main() {
         let mut x = b.clone();
         let t = Instant::now();
         chol.solve_in_place(&mut x);
+        let rate = chol.factor_flops().map_or(String::new(), |f| {
+            format!(
+                ", {:.2} GFlop ({:.1} GFlop/s)",
+                f * 1e-9,
+                f * 1e-6 / numeric[2]
+            )
+        });
         println!(
-            "{name}: ordering + symbolic {t_analysis:.1} ms, numeric {:.1} ms (median of 5), solve {:.1} ms, entries {}, residual {:.1e}",
+            "{name}: ordering + symbolic {t_analysis:.1} ms, numeric {:.1} ms (median of 5{rate}), solve {:.1} ms, entries {}, residual {:.1e}",
             numeric[2],
             ms(t),
             chol.factor_nnz(),
