@@ -1907,6 +1907,47 @@ mod tests {
     }
 
     #[test]
+    fn a_nan_or_infinite_entry_anywhere_is_refused_by_every_factor() {
+        // Off the diagonal, in the first column (its row's pivot is the only
+        // one it reaches) and in the last but one; whole (simplicial and
+        // supernodal) and split.
+        let (p, v) = grid(12, 3);
+        let blocks: Vec<usize> = (0..p.n).map(|eq| eq / 3).collect();
+        let sep = Ordering::separated(&p, Some(&blocks)).unwrap().unwrap();
+        let mut factors = [
+            Cholesky::new(&p).unwrap(),
+            Cholesky::fill_reducing(&p, Some(&blocks), Parallelism::SEQUENTIAL).unwrap(),
+            Cholesky::split(&p, &sep, Parallelism::threads(2)).unwrap(),
+        ];
+        let (l3, _) = laplacian(6);
+        let mut small = Cholesky::new(&l3).unwrap();
+        assert!(!small.has_halves(), "a simplicial factor");
+        let (_, lv) = laplacian(6);
+        for bad in [f64::NAN, f64::INFINITY] {
+            for col in [0, p.n - 2] {
+                let k = p.col_ptr[col] + 1;
+                assert!(p.row_idx[k] > col);
+                let mut values = v.clone();
+                values[k] = bad;
+                for chol in &mut factors {
+                    assert!(matches!(
+                        chol.factorize(&values),
+                        Err(SolveError::NotPositiveDefinite)
+                    ));
+                    chol.factorize(&v).unwrap();
+                }
+            }
+            let mut values = lv.clone();
+            let k = l3.col_ptr[0] + 1;
+            values[k] = bad;
+            assert!(matches!(
+                small.factorize(&values),
+                Err(SolveError::NotPositiveDefinite)
+            ));
+        }
+    }
+
+    #[test]
     fn a_split_factor_refuses_a_matrix_that_is_not_positive_definite() {
         let (p, v) = grid(16, 3);
         let blocks: Vec<usize> = (0..p.n).map(|eq| eq / 3).collect();
