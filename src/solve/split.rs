@@ -379,30 +379,20 @@ impl SplitCholesky {
         let (a, b) = rayon::join(|| first.factorize(values), || second.factorize(values));
         a?;
         b?;
-        let [first, second] = &self.halves;
         // Σ = L_S₁ L_S₁ᵀ + L_S₂ L_S₂ᵀ − C, lower triangle.
-        tri_matmul(
-            self.schur.as_mut(),
-            BlockStructure::TriangularLower,
-            Accum::Replace,
-            first.trailing.as_ref(),
-            BlockStructure::TriangularLower,
-            first.trailing.transpose(),
-            BlockStructure::TriangularUpper,
-            1.0,
-            self.par,
-        );
-        tri_matmul(
-            self.schur.as_mut(),
-            BlockStructure::TriangularLower,
-            Accum::Add,
-            second.trailing.as_ref(),
-            BlockStructure::TriangularLower,
-            second.trailing.transpose(),
-            BlockStructure::TriangularUpper,
-            1.0,
-            self.par,
-        );
+        for (h, accum) in self.halves.iter().zip([Accum::Replace, Accum::Add]) {
+            tri_matmul(
+                self.schur.as_mut(),
+                BlockStructure::TriangularLower,
+                accum,
+                h.trailing.as_ref(),
+                BlockStructure::TriangularLower,
+                h.trailing.transpose(),
+                BlockStructure::TriangularUpper,
+                1.0,
+                self.par,
+            );
+        }
         for &(i, j, k) in &self.c_entries {
             self.schur[(i, j)] -= values[k];
         }
