@@ -8,13 +8,16 @@
 //! one thread, with the number of elements integrated again and the
 //! quadrature points they hold.
 //!
-//! `cargo run --release --example tip_event -- 3 6 10 [tet10] [reps]`
+//! With `threads=N`, the update and the projection also run on N threads
+//! (`Model::update_cut_mapped_with`, `map_state_reported_with`).
+//!
+//! `cargo run --release --example tip_event -- 3 6 10 [tet10] [reps] [threads=N]`
 use std::time::Instant;
-use xfem_cut::blade::{map_state, CutSet};
+use xfem_cut::blade::{map_state_reported_with, CutSet};
 use xfem_cut::cut::FrontMode;
 use xfem_cut::dynamics::{DynamicOptions, Newmark};
 use xfem_cut::model::Formulation;
-use xfem_cut::solve::Cholesky;
+use xfem_cut::solve::{Cholesky, Parallelism};
 use xfem_cut::study::fixtures::{beam_mesh, seed_beam, seed_blade};
 
 fn median(mut f: impl FnMut(), reps: usize) -> f64 {
@@ -33,10 +36,15 @@ fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let div = [0, 1, 2].map(|i| args.get(i).map_or(3, |a| a.parse().expect("divisions")));
     let tet10 = args.iter().any(|a| a == "tet10");
+    let threads: usize = args
+        .iter()
+        .find_map(|a| a.strip_prefix("threads="))
+        .map_or(1, |n| n.parse().expect("threads"));
     let reps: usize = args
         .get(3)
-        .filter(|a| *a != "tet10")
+        .filter(|a| *a != "tet10" && !a.starts_with("threads="))
         .map_or(7, |a| a.parse().expect("repetitions"));
+    let par = Parallelism::threads(threads);
     let mesh = beam_mesh(div, tet10);
     let cuts = CutSet {
         front: FrontMode::Tip,
@@ -106,19 +114,19 @@ fn main() {
     );
     let update = median(
         || {
-            std::hint::black_box(model_a.update_cut(setup_b.clone()).unwrap());
+            std::hint::black_box(model_a.update_cut_mapped_with(setup_b.clone(), par).unwrap());
         },
         reps,
     );
     let update_built = median(
         || {
-            std::hint::black_box(built_a.update_cut(setup_b.clone()).unwrap());
+            std::hint::black_box(built_a.update_cut_mapped_with(setup_b.clone(), par).unwrap());
         },
         reps,
     );
     let map = median(
         || {
-            std::hint::black_box(map_state(&model_a, &model_b, &state));
+            std::hint::black_box(map_state_reported_with(&model_a, &model_b, &state, par));
         },
         reps,
     );
@@ -129,6 +137,6 @@ fn main() {
         reps,
     );
     println!(
-        "set-up {setup:.2} ms | model update {update:.2} ms (from a built model, old blocks integrated again: {update_built:.2} ms) | state map (projection) {map:.2} ms | a linear step {step:.3} ms"
+        "{threads} thread(s): set-up {setup:.2} ms | model update {update:.2} ms (from a built model, old blocks integrated again: {update_built:.2} ms) | state map (projection) {map:.2} ms | a linear step {step:.3} ms"
     );
 }

@@ -31,7 +31,7 @@ use crate::mesh::TetMesh;
 use crate::model::{Model, ModelError};
 #[cfg(doc)]
 use crate::solve::BorderedSolve;
-use crate::solve::{Cholesky, SolveError};
+use crate::solve::{Cholesky, Parallelism, SolveError};
 use crate::surface::TriangleSurface;
 use nalgebra::{Matrix3, Point3, Vector3};
 use std::path::Path;
@@ -814,8 +814,18 @@ pub fn map_state(old: &Model, new: &Model, state: &State) -> State {
 
 /// [`map_state`], with what its projection did (`None`: nothing to project).
 pub fn map_state_reported(old: &Model, new: &Model, state: &State) -> (State, Option<Projection>) {
+    map_state_reported_with(old, new, state, Parallelism::SEQUENTIAL)
+}
+
+/// [`map_state_reported`], its projection on `parallelism`'s threads.
+pub fn map_state_reported_with(
+    old: &Model,
+    new: &Model,
+    state: &State,
+    parallelism: Parallelism,
+) -> (State, Option<Projection>) {
     let mut mapped = map_state_unprojected(old, new, state);
-    let report = project_tip_change(old, new, state, &mut mapped);
+    let report = project_tip_change_with(old, new, state, &mut mapped, parallelism);
     // Enriched DOFs prescribed at a fixed node hold zero (a fit may have set
     // the prescribed components of a partly fixed shape function).
     let first_enriched = 3 * new.mesh.n_nodes();
@@ -893,6 +903,32 @@ pub fn project_tip_change(
     new: &Model,
     state: &State,
     mapped: &mut State,
+) -> Option<Projection> {
+    project_tip_change_with(old, new, state, mapped, Parallelism::SEQUENTIAL)
+}
+
+/// What [`project_tip_change`] integrates on one element: its fitted
+/// functions (local index, slot), the strain term's weight β, the L² and
+/// gradient Gram products (nl × nl, 3nl × 3nl) and the right-hand sides
+/// (the displacement's 3 nl, the velocity's and acceleration's nl × 6).
+struct ElementFit {
+    local: Vec<(usize, usize)>,
+    beta: f64,
+    l2: nalgebra::DMatrix<f64>,
+    g2: nalgebra::DMatrix<f64>,
+    rhs_d: Vec<f64>,
+    rhs_l: nalgebra::DMatrix<f64>,
+}
+
+/// [`project_tip_change`] with the elements integrated on `parallelism`'s
+/// threads (the same fit whatever their number: each element's terms are
+/// computed alone and added in element order).
+pub fn project_tip_change_with(
+    old: &Model,
+    new: &Model,
+    state: &State,
+    mapped: &mut State,
+    parallelism: Parallelism,
 ) -> Option<Projection> {
     let (Some(oc), Some(nc)) = (&old.cut, &new.cut) else {
         return None;
@@ -983,30 +1019,34 @@ pub fn project_tip_change(
         let s = s as usize;
         Vector3::new(x[3 * s], x[3 * s + 1], x[3 * s + 2])
     };
-    let mut points = Vec::new();
-    let (mut vals, mut grads, mut old_vals, mut old_grads) =
-        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    // Per element: (local index, slot) of its fitted functions.
-    let mut local: Vec<(usize, usize)> = Vec::new();
-    for e in 0..new.mesh.n_elements() {
+    // Per element holding a fitted function, side by side: its fitted
+    // functions (local index, slot), their Grams' products and right-hand
+    // sides; added below in element order.
+    let elements: Vec<usize> = (0..new.mesh.n_elements())
+        .filter(|&e| {
+            new.element_shapes(e)
+                .iter()
+                .any(|&s| slot[s as usize] != usize::MAX)
+        })
+        .collect();
+    let fits = parallelism.map(elements.len(), |k| {
+        let e = elements[k];
         let ids = new.element_shapes(e);
-        local.clear();
-        local.extend(
-            ids.iter()
-                .enumerate()
-                .filter(|&(_, &s)| slot[s as usize] != usize::MAX)
-                .map(|(a, &s)| (a, slot[s as usize])),
-        );
-        if local.is_empty() {
-            continue;
-        }
+        let local: Vec<(usize, usize)> = ids
+            .iter()
+            .enumerate()
+            .filter(|&(_, &s)| slot[s as usize] != usize::MAX)
+            .map(|(a, &s)| (a, slot[s as usize]))
+            .collect();
         let old_ids = old.element_shapes(e);
         let (ev_new, ev_old) = (new.element_evaluator(e), old.element_evaluator(e));
+        let mut points = Vec::new();
         new.field_points_into(e, &ev_new, &mut points);
-        vals.resize(ids.len(), 0.0);
-        grads.resize(ids.len(), Vector3::zeros());
-        old_vals.resize(old_ids.len(), 0.0);
-        old_grads.resize(old_ids.len(), Vector3::zeros());
+        let (mut vals, mut grads) = (vec![0.0; ids.len()], vec![Vector3::zeros(); ids.len()]);
+        let (mut old_vals, mut old_grads) = (
+            vec![0.0; old_ids.len()],
+            vec![Vector3::zeros(); old_ids.len()],
+        );
         let h = new.mesh.element_size(e);
         let beta = GRADIENT_WEIGHT * h * h;
         // The fitted functions' values (nl rows) and gradients (3 nl rows:
@@ -1016,6 +1056,8 @@ pub fn project_tip_change(
         let mut a_val = nalgebra::DMatrix::<f64>::zeros(nl, np);
         let mut a_grad = nalgebra::DMatrix::<f64>::zeros(3 * nl, np);
         let mut weights = Vec::with_capacity(np);
+        let mut rhs_d = vec![0.0; 3 * nl];
+        let mut rhs_l = nalgebra::DMatrix::<f64>::zeros(nl, 6);
         for (q, &(x, w, side)) in points.iter().enumerate() {
             ev_new.eval(&x, side, &mut vals, &mut grads);
             ev_old.eval(&x, side, &mut old_vals, &mut old_grads);
@@ -1042,13 +1084,13 @@ pub fn project_tip_change(
             let sym = gr + gr.transpose();
             let div = gr.trace() * ratio;
             weights.push(w);
-            for (i, &(a, sa)) in local.iter().enumerate() {
+            for (i, &(a, _)) in local.iter().enumerate() {
                 let (va, ga) = (w * vals[a], grads[a] * w);
                 let strain = sym * ga * beta;
                 for c in 0..3 {
-                    rhs_d[3 * sa + c] += va * r[0][c] + strain[c] + beta * div * ga[c];
-                    rhs_l[(sa, c)] += va * r[1][c];
-                    rhs_l[(sa, 3 + c)] += va * r[2][c];
+                    rhs_d[3 * i + c] += va * r[0][c] + strain[c] + beta * div * ga[c];
+                    rhs_l[(i, c)] += va * r[1][c];
+                    rhs_l[(i, 3 + c)] += va * r[2][c];
                     a_grad[(c * nl + i, q)] = grads[a][c];
                 }
                 a_val[(i, q)] = vals[a];
@@ -1064,7 +1106,25 @@ pub fn project_tip_change(
         };
         let l2 = weighted(&a_val) * a_val.transpose();
         let g2 = weighted(&a_grad) * a_grad.transpose();
+        ElementFit {
+            local,
+            beta,
+            l2,
+            g2,
+            rhs_d,
+            rhs_l,
+        }
+    });
+    for fit in fits {
+        let (local, beta, l2, g2) = (&fit.local, fit.beta, &fit.l2, &fit.g2);
+        let nl = local.len();
         for (i, &(_, sa)) in local.iter().enumerate() {
+            for c in 0..3 {
+                rhs_d[3 * sa + c] += fit.rhs_d[3 * i + c];
+            }
+            for c in 0..6 {
+                rhs_l[(sa, c)] += fit.rhs_l[(i, c)];
+            }
             for (j, &(_, sb)) in local.iter().enumerate() {
                 gram_l[(sa, sb)] += l2[(i, j)];
                 // The lower triangle (component c of function k is 3k + c).
@@ -1558,6 +1618,21 @@ pub fn run_dynamic(
     mesh: &TetMesh,
     build: &dyn Fn(Option<CutSetup>) -> Result<Model, ModelError>,
     opts: DynamicOptions,
+    observe: impl FnMut(usize, &Model, &mut Newmark<'_>),
+) -> Result<Progressive, BladeError> {
+    run_dynamic_with(cuts, mesh, build, opts, Parallelism::SEQUENTIAL, observe)
+}
+
+/// [`run_dynamic`] on `parallelism`'s threads: the steps' element loops
+/// (forces, tangents, rotations) and, at each cut event, the integration
+/// of the changed elements and the projection's (the same run whatever
+/// their number, up to the order of the step's force sums).
+pub fn run_dynamic_with(
+    cuts: &CutSet,
+    mesh: &TetMesh,
+    build: &dyn Fn(Option<CutSetup>) -> Result<Model, ModelError>,
+    opts: DynamicOptions,
+    parallelism: Parallelism,
     mut observe: impl FnMut(usize, &Model, &mut Newmark<'_>),
 ) -> Result<Progressive, BladeError> {
     // The scene's blades must cut the body and keep clear of the other cuts.
@@ -1585,6 +1660,9 @@ pub fn run_dynamic(
     let mut step = 0;
     loop {
         let mut nm = Newmark::on_factor(&model, factor, opts)?;
+        if parallelism.n_threads() > 1 {
+            nm.set_parallelism(parallelism);
+        }
         if let Some(f) = forces.take() {
             nm.set_linear_forces(f);
         }
@@ -1666,13 +1744,13 @@ pub fn run_dynamic(
             let n = m.mesh.n_elements();
             (m, n, true)
         } else {
-            let (m, stats, update) = model.update_cut_mapped(setup)?;
+            let (m, stats, update) = model.update_cut_mapped_with(setup, parallelism)?;
             // The stiffness moved over and mended where the elements changed.
             forces = old_forces.map(|f| f.updated(&model, &m, &update));
             (m, stats.changed_elements, stats.dropped_equations > 0)
         };
         let model_seconds = t_model.elapsed().as_secs_f64();
-        let (mapped, projection) = map_state_reported(&model, &new_model, &state);
+        let (mapped, projection) = map_state_reported_with(&model, &new_model, &state, parallelism);
         sweep.projections.push(projection);
         let pattern_changed = new_model.pattern.col_ptr != model.pattern.col_ptr
             || new_model.pattern.row_idx != model.pattern.row_idx;

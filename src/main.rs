@@ -30,7 +30,7 @@ enum Command {
     /// Solve a scene at one refinement level; writes DIR/result.vtu (+ result.pvd series for
     /// dynamic runs) and DIR/probes.csv (x,y,z,ux,uy,uz) when the case lists probes.
     #[command(
-        after_help = "Environment: XFEM_THREADS=N runs the numeric factorisation (from 40M entries of L) and the element loops on N threads (default 1)."
+        after_help = "Environment: XFEM_THREADS=N runs the element loops (and a blade sweep's cut events) on N threads and, from 4k equations in scenes without a blade, factorises in two halves side by side (default 1)."
     )]
     Run {
         /// The case file (TOML).

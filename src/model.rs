@@ -19,7 +19,7 @@ use crate::front::{self, N_BRANCH};
 use crate::material::{Lame, Material};
 use crate::mesh::{tet_volume, BarycentricMap, ElementKind, TetMesh, TET10_EDGES};
 use crate::quadrature::{self, QuadPoint};
-use crate::solve::Pattern;
+use crate::solve::{Parallelism, Pattern};
 use nalgebra::{Matrix3, Point3, Vector3};
 use std::ops::Range;
 
@@ -2263,6 +2263,17 @@ impl Model {
         &self,
         cut: Option<CutSetup>,
     ) -> Result<(Model, UpdateStats, CutUpdate), ModelError> {
+        self.update_cut_mapped_with(cut, Parallelism::SEQUENTIAL)
+    }
+
+    /// [`Model::update_cut_mapped`] with the changed elements integrated on
+    /// `parallelism`'s threads (the same model whatever their number: each
+    /// element's blocks are computed alone and added in element order).
+    pub fn update_cut_mapped_with(
+        &self,
+        cut: Option<CutSetup>,
+        parallelism: Parallelism,
+    ) -> Result<(Model, UpdateStats, CutUpdate), ModelError> {
         if self.body_force {
             return Err(ModelError::BodyForceUpdate);
         }
@@ -2313,9 +2324,33 @@ impl Model {
         let mut flat = FlatElements::with_capacity(mesh.n_elements(), self.shape_ids.len());
         let mut changed: Vec<(usize, ElementBlock)> = Vec::new();
         let mut old_masses: Vec<(usize, Vec<f64>)> = Vec::new();
+        // The changed elements' old contributions (loads, masses) and new
+        // blocks, integrated side by side; added below in element order.
+        let kept: Vec<bool> = (0..mesh.n_elements())
+            .map(|e| same_element_model(mesh, self.cut.as_ref(), cut.as_ref(), e))
+            .collect();
+        let to_integrate: Vec<usize> = (0..mesh.n_elements()).filter(|&e| !kept[e]).collect();
+        let integrate_old = need_mass || integrator.has_load();
+        let blocks = parallelism.map(to_integrate.len(), |k| {
+            let e = to_integrate[k];
+            let old_block = if integrate_old {
+                Some(match self.contributions.get(&e) {
+                    Some(block) => block.clone(),
+                    None => {
+                        let old_cells = element_cells(mesh, self.cut.as_ref(), e)?;
+                        old_integrator.block(&old_cells, None)
+                    }
+                })
+            } else {
+                None
+            };
+            let cells = element_cells(mesh, cut.as_ref(), e)?;
+            Ok::<_, ModelError>((old_block, integrator.block(&cells, None)))
+        });
+        let mut blocks = blocks.into_iter();
         for e in 0..mesh.n_elements() {
             let el = &self.elements[e];
-            if same_element_model(mesh, self.cut.as_ref(), cut.as_ref(), e) {
+            if kept[e] {
                 let ids: Vec<u32> = self.shape_ids[el.shapes.clone()]
                     .iter()
                     .map(|&s| map[s as usize])
@@ -2340,14 +2375,8 @@ impl Model {
                 );
                 continue;
             }
-            if need_mass || integrator.has_load() {
-                let mut old_block = match self.contributions.get(&e) {
-                    Some(block) => block.clone(),
-                    None => {
-                        let old_cells = element_cells(mesh, self.cut.as_ref(), e)?;
-                        old_integrator.block(&old_cells, None)
-                    }
-                };
+            let (old_block, block) = blocks.next().expect("one block per changed element")?;
+            if let Some(mut old_block) = old_block {
                 for s in old_block.shape_ids.iter_mut() {
                     *s = map[*s as usize];
                 }
@@ -2356,8 +2385,6 @@ impl Model {
                     old_masses.push((e, std::mem::take(&mut old_block.mass)));
                 }
             }
-            let cells = element_cells(mesh, cut.as_ref(), e)?;
-            let block = integrator.block(&cells, None);
             globals.add(&block, n_nodes);
             flat.push_block(e, &block);
             changed.push((e, block));

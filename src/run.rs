@@ -1,6 +1,6 @@
 //! One run of a scene at one level: build, solve, evaluate probes, write outputs.
 
-use crate::blade::{run_dynamic, BladeError, CutSet, Sweep};
+use crate::blade::{run_dynamic_with, BladeError, CutSet, Sweep};
 use crate::dynamics::DynamicOptions;
 use crate::dynamics::{DynamicError, Energies, Newmark};
 use crate::dynamics::{StepStats, StepSummary};
@@ -119,7 +119,8 @@ pub fn solve_scene(
 
 /// [`solve_scene`] with the numeric factorisations and the element loops
 /// (forces, tangents) of static and dynamic scenes on `parallelism`'s threads
-/// (a blade's sweep runs on one).
+/// (a blade's sweep: its steps' element loops, and at each cut event the
+/// changed elements' integration and the state's projection).
 pub fn solve_scene_with(
     scene: &Scene,
     level: usize,
@@ -149,8 +150,15 @@ pub fn solve_scene_with(
         },
     ) = (scene.has_blade(), &scene.analysis)
     {
-        let mut result =
-            solve_progressive(scene, mesh, t_mesh, *options, *output_every, keep_frames)?;
+        let mut result = solve_progressive(
+            scene,
+            mesh,
+            t_mesh,
+            *options,
+            *output_every,
+            keep_frames,
+            parallelism,
+        )?;
         if let Some(p) = mesh_override {
             result.plan.mesh_from(p);
         }
@@ -292,6 +300,7 @@ fn solve_progressive(
     options: DynamicOptions,
     output_every: usize,
     keep_frames: bool,
+    parallelism: Parallelism,
 ) -> Result<RunResult, RunError> {
     let file = scene.file.display().to_string();
     let blade_err = |source| RunError::Blade {
@@ -312,25 +321,32 @@ fn solve_progressive(
     let mut residual: f64 = 0.0;
     let mut factorisations = 0;
     let t2 = Instant::now();
-    let result = run_dynamic(&cuts, &mesh, &build, options, |step, model, nm| {
-        if step > 0 {
-            if let Some(r) = nm.last_report() {
-                iterations.push(r.iterations);
-                residual = residual.max(r.residual);
-                factorisations += r.factorisations;
+    let result = run_dynamic_with(
+        &cuts,
+        &mesh,
+        &build,
+        options,
+        parallelism,
+        |step, model, nm| {
+            if step > 0 {
+                if let Some(r) = nm.last_report() {
+                    iterations.push(r.iterations);
+                    residual = residual.max(r.residual);
+                    factorisations += r.factorisations;
+                }
             }
-        }
-        if step % output_every == 0 || step == options.steps {
-            if keep_frames {
-                let edges = cuts.edges_at(nm.state.time);
-                frames.push((
-                    nm.state.time,
-                    crate::output::progressive_frame(model, &nm.state.d, &edges),
-                ));
+            if step % output_every == 0 || step == options.steps {
+                if keep_frames {
+                    let edges = cuts.edges_at(nm.state.time);
+                    frames.push((
+                        nm.state.time,
+                        crate::output::progressive_frame(model, &nm.state.d, &edges),
+                    ));
+                }
+                energies.push((nm.state.time, nm.energies()));
             }
-            energies.push((nm.state.time, nm.energies()));
-        }
-    })
+        },
+    )
     .map_err(blade_err)?;
     let solve = t2.elapsed().as_secs_f64();
     let n_elements = mesh.n_elements();
