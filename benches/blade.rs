@@ -22,18 +22,21 @@
 //!   mapped and projected, the step after it with symbolic and numeric
 //!   factorisation) and its costliest phases `tip_update`, `tip_map_state`
 //!   (linear only: the same for both formulations), beside `tip_step_sweep`
-//!   (a step on the tip-cut beam). `examples/tip_event.rs` splits it further.
+//!   (a step on the tip-cut beam), and `tip_event_2threads` (the event on two
+//!   threads). `examples/tip_event.rs` splits it further.
 //!
 //! Short runs: `cargo bench --bench blade -- --warm-up-time 1 --measurement-time 3`.
 
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion};
 use std::hint::black_box;
-use xfem_cut::blade::{map_state, same_setup, stiffness_plus_mass, CutSet};
+use xfem_cut::blade::{
+    map_state, map_state_reported_with, same_setup, stiffness_plus_mass, CutSet,
+};
 use xfem_cut::cut::CutSetup;
 use xfem_cut::dynamics::{DynamicOptions, LinearFactor, LinearForces, Newmark, State};
 use xfem_cut::mesh::TetMesh;
 use xfem_cut::model::{Formulation, Model};
-use xfem_cut::solve::{BorderedSolve, Cholesky};
+use xfem_cut::solve::{BorderedSolve, Cholesky, Parallelism};
 use xfem_cut::study::fixtures::{beam_mesh, seed_beam, seed_blade};
 
 /// The allocator of the `xfem-cut` binary, so that these times are the CLI's.
@@ -63,7 +66,21 @@ fn settled(model: &Model, opts: DynamicOptions) -> Newmark<'_> {
 /// The step after an event on `model` from the mapped `state` (integrator,
 /// numeric factorisation, the step), on the factorisation `chol`.
 fn first_step(model: &Model, chol: Cholesky, state: State, opts: DynamicOptions) {
+    first_step_on(model, chol, state, opts, Parallelism::SEQUENTIAL);
+}
+
+/// [`first_step`] with the element loops on `parallelism`'s threads.
+fn first_step_on(
+    model: &Model,
+    chol: Cholesky,
+    state: State,
+    opts: DynamicOptions,
+    parallelism: Parallelism,
+) {
     let mut nb = Newmark::new(model, chol, opts).unwrap();
+    if parallelism.n_threads() > 1 {
+        nb.set_parallelism(parallelism);
+    }
     nb.state = state;
     black_box(nb.step().unwrap());
 }
@@ -321,6 +338,18 @@ fn benches(c: &mut Criterion) {
                     let (m, _) = model_a.update_cut(s).unwrap();
                     let mapped = map_state(&model_a, &m, &state_a);
                     first_step(&m, Cholesky::new(&m.pattern).unwrap(), mapped, opts);
+                })
+            });
+            // The same event on two threads (`XFEM_THREADS=2`: the changed
+            // elements' integration, the projection and the step's element
+            // loops side by side).
+            let two = Parallelism::threads(2);
+            group.bench_function(BenchmarkId::new("tip_event_2threads", &name), |b| {
+                b.iter(|| {
+                    let s = cuts.setup_at(&mesh, t_b).unwrap();
+                    let (m, _, _) = model_a.update_cut_mapped_with(s, two).unwrap();
+                    let (mapped, _) = map_state_reported_with(&model_a, &m, &state_a, two);
+                    first_step_on(&m, Cholesky::new(&m.pattern).unwrap(), mapped, opts, two);
                 })
             });
             // The phases, once (they do not depend on the formulation).

@@ -114,13 +114,21 @@ fn main() {
     );
     let update = median(
         || {
-            std::hint::black_box(model_a.update_cut_mapped_with(setup_b.clone(), par).unwrap());
+            std::hint::black_box(
+                model_a
+                    .update_cut_mapped_with(setup_b.clone(), par)
+                    .unwrap(),
+            );
         },
         reps,
     );
     let update_built = median(
         || {
-            std::hint::black_box(built_a.update_cut_mapped_with(setup_b.clone(), par).unwrap());
+            std::hint::black_box(
+                built_a
+                    .update_cut_mapped_with(setup_b.clone(), par)
+                    .unwrap(),
+            );
         },
         reps,
     );
