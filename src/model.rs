@@ -1994,11 +1994,18 @@ fn mid_edges(mesh: &TetMesh, cut: Option<&CutSetup>) -> Vec<Option<[u32; 2]>> {
 }
 
 impl Model {
-    /// Parts of the body held by no Dirichlet condition, described for an error message.
+    /// Parts of the body that a static solve cannot hold, described for an
+    /// error message: held by no Dirichlet condition, or by prescribed
+    /// components that leave a rigid motion free (a face fixed in x and y
+    /// only lets its part slide in z; a single fixed node or a line of them
+    /// lets it turn). Such a stiffness is singular, and its factorisation
+    /// may still pass on round-off pivots.
     ///
     /// Regions are (element, side) pairs; two regions that share a node and see
     /// the same DOFs there (the same ψ of its enrichment) belong to one part, so
-    /// a cut that separates the body makes two parts.
+    /// a cut that separates the body makes two parts. A part's prescribed
+    /// DOFs are the prescribed components of the nodes where one of its
+    /// regions sees the standard DOFs alone (ψ = 0).
     pub fn free_parts(&self) -> Vec<String> {
         let mesh = &self.mesh;
         let mut regions: Vec<(usize, i8)> = Vec::new();
@@ -2023,7 +2030,8 @@ impl Model {
         // Key (node, ψ in the region) → first region seen with it.
         let mut first: std::collections::HashMap<(usize, i8), usize> =
             std::collections::HashMap::new();
-        let mut held = vec![false; regions.len()];
+        // Per region: its nodes with prescribed components seen alone.
+        let mut held: Vec<Vec<usize>> = vec![Vec::new(); regions.len()];
         let is_fixed = |node: usize| self.prescribed_nodes_contains(node);
         for (r, &(e, side)) in regions.iter().enumerate() {
             for &node in mesh.element(e) {
@@ -2034,7 +2042,7 @@ impl Model {
                     _ => 0,
                 };
                 if p == 0 && is_fixed(node) {
-                    held[r] = true;
+                    held[r].push(node);
                 }
                 match first.entry((node, p)) {
                     std::collections::hash_map::Entry::Occupied(o) => {
@@ -2047,14 +2055,15 @@ impl Model {
                 }
             }
         }
-        let mut part_held: std::collections::HashMap<usize, (bool, usize, Vector3<f64>)> =
+        // Per part: its held nodes, regions and the sum of their centroids.
+        let mut parts: std::collections::HashMap<usize, (Vec<usize>, usize, Vector3<f64>)> =
             std::collections::HashMap::new();
-        for r in 0..regions.len() {
+        for (r, nodes) in held.into_iter().enumerate() {
             let root = find(&mut parent, r);
-            let entry = part_held
+            let entry = parts
                 .entry(root)
-                .or_insert((false, 0, Vector3::zeros()));
-            entry.0 |= held[r];
+                .or_insert((Vec::new(), 0, Vector3::zeros()));
+            entry.0.extend(nodes);
             entry.1 += 1;
             let c = mesh
                 .vertex_points(regions[r].0)
@@ -2063,19 +2072,78 @@ impl Model {
                 / 4.0;
             entry.2 += c;
         }
-        let mut free: Vec<String> = part_held
-            .values()
-            .filter(|(h, _, _)| !h)
-            .map(|(_, n, c)| {
-                let c = c / *n as f64;
-                format!(
-                    "{n} element regions around ({:.4}, {:.4}, {:.4}) touch no [[fix]]",
+        let mut free: Vec<String> = parts
+            .into_values()
+            .filter_map(|(mut nodes, n, c)| {
+                let c = c / n as f64;
+                let at = format!(
+                    "{n} element regions around ({:.4}, {:.4}, {:.4})",
                     c.x, c.y, c.z
-                )
+                );
+                if nodes.is_empty() {
+                    return Some(format!("{at} touch no [[fix]]"));
+                }
+                nodes.sort_unstable();
+                nodes.dedup();
+                self.free_rigid_motion(&nodes).map(|motion| {
+                    format!("{at} are held by [[fix]] components that leave them free to {motion}")
+                })
             })
             .collect();
         free.sort();
         free
+    }
+
+    /// The rigid motion that the prescribed components of `nodes` leave
+    /// free, described ("translate along (0, 0, 1)"), or `None` when they
+    /// hold all six. Each prescribed component c of node i constrains the
+    /// rigid motions u(X) = t + ω × (X − X̄) by u_c(X_i) = 0: a row of a
+    /// 6-column matrix A (positions centred on and scaled by the nodes'
+    /// spread, so A is O(1)); a motion is free where AᵀA has an eigenvalue
+    /// under 1e-10 of its largest.
+    fn free_rigid_motion(&self, nodes: &[usize]) -> Option<String> {
+        let points = || nodes.iter().map(|&i| self.mesh.nodes[i].coords);
+        let centre = points().sum::<Vector3<f64>>() / nodes.len() as f64;
+        let spread = points().map(|x| (x - centre).norm()).fold(0.0, f64::max);
+        let mut gram = nalgebra::Matrix6::<f64>::zeros();
+        for &i in nodes {
+            let y = if spread > 0.0 {
+                (self.mesh.nodes[i].coords - centre) / spread
+            } else {
+                Vector3::zeros()
+            };
+            for c in (0..3).filter(|&c| self.equation[3 * i + c] == NONE) {
+                let mut a = nalgebra::Vector6::<f64>::zeros();
+                a[c] = 1.0;
+                for k in 0..3 {
+                    a[3 + k] = Vector3::ith(k, 1.0).cross(&y)[c];
+                }
+                gram += a * a.transpose();
+            }
+        }
+        let eig = nalgebra::SymmetricEigen::new(gram);
+        let largest = eig.eigenvalues.max();
+        let (k, smallest) = eig.eigenvalues.argmin();
+        if smallest > 1e-10 * largest {
+            return None;
+        }
+        let v = eig.eigenvectors.column(k);
+        let (t, w) = (
+            Vector3::new(v[0], v[1], v[2]),
+            Vector3::new(v[3], v[4], v[5]),
+        );
+        let unit = |x: Vector3<f64>| {
+            // Largest component positive; rounded, + 0 (no "-0.000").
+            let x = x / x.norm();
+            let x = if x.x + x.y + x.z < 0.0 { -x } else { x };
+            let x = x.map(|v| (v * 1e3).round() / 1e3 + 0.0);
+            format!("({:.3}, {:.3}, {:.3})", x.x, x.y, x.z)
+        };
+        Some(if w.norm() <= 1e-6 {
+            format!("translate along {}", unit(t))
+        } else {
+            format!("turn about an axis along {}", unit(w))
+        })
     }
 
     fn prescribed_nodes_contains(&self, node: usize) -> bool {

@@ -111,6 +111,56 @@ fn a_static_scene_with_a_freed_part_is_refused() {
     );
 }
 
+/// A part held by prescribed components that leave a rigid motion free is
+/// refused as a part held by nothing (its stiffness is singular; before,
+/// the factorisation passed on round-off pivots and the upper piece moved
+/// 4e10 m). Found through the CLI with generated scenes.
+#[test]
+fn a_static_part_held_only_in_some_directions_is_refused_naming_the_motion() {
+    let statics = "[gravity]\nacceleration = [0.0, 0.0, -9.81]\n[analysis]\ntype = \"static\"\n";
+    let refused = |scene: Scene| {
+        solve_scene(&scene, 0, None, false)
+            .err()
+            .expect("must be refused")
+            .to_string()
+    };
+    // The upper piece of the through-cut held on its top face in x and y only:
+    // free to slide in z and to turn about axes in the face.
+    let xy_only = "[[fix]]\nmin = [-inf, -inf, 2.0]\nmax = [inf, inf, 2.0]\ncomponents = \"xy\"\n";
+    let err = refused(bar([2, 2, 4], 1.3, &format!("{BOTTOM}{xy_only}{statics}")));
+    assert!(
+        err.contains("floats free") && err.contains("bar.toml") && err.contains("free to"),
+        "{err}"
+    );
+    // The whole bar (the cut far outside) held on one line of nodes: free
+    // to turn about it.
+    let line = "[[fix]]\nmin = [-inf, 0.0, 0.0]\nmax = [inf, 0.0, 0.0]\n";
+    let uncut = |extra: &str| {
+        let text = format!(
+            "name = \"bar\"\n[body]\nbox = [[0.0, 0.0, 0.0], [1.0, 1.0, 2.0]]\nlevels = [[2, 2, 4]]\n[material]\nyoung = 1.0e4\npoisson = 0.3\ndensity = 1000.0\n{extra}"
+        );
+        Scene::parse(&text, Path::new("bar.toml")).unwrap()
+    };
+    let err = refused(uncut(&format!("{line}{statics}")));
+    assert!(
+        err.contains("turn about an axis along (1.000, 0.000, 0.000)"),
+        "{err}"
+    );
+    // Held in z on the bottom face and in x, y at two nodes of it: every
+    // rigid motion is held, and the solve runs.
+    let z_bottom = "[[fix]]\nmin = [-inf, -inf, 0.0]\nmax = [inf, inf, 0.0]\ncomponents = \"z\"\n";
+    let corners = "[[fix]]\nmin = [0.0, 0.0, 0.0]\nmax = [0.0, 0.0, 0.0]\ncomponents = \"xy\"\n[[fix]]\nmin = [1.0, 0.0, 0.0]\nmax = [1.0, 0.0, 0.0]\ncomponents = \"y\"\n";
+    let held = solve_scene(
+        &uncut(&format!("{z_bottom}{corners}{statics}")),
+        0,
+        None,
+        false,
+    )
+    .unwrap();
+    assert!(held.d.iter().all(|v| v.is_finite()));
+    assert!(held.residual < 1e-9, "{}", held.residual);
+}
+
 #[test]
 fn the_freed_part_falls_with_gravity() {
     let g = 9.81;
