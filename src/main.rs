@@ -201,10 +201,11 @@ fn run() -> Result<()> {
                     }
                 );
             }
+            // The probes' values first: an error writes nothing.
+            let values = probe_values(&scene, &result)?;
             std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
             xfem_cut::output::write_result(&scene, &result, &out)?;
             if !scene.probes.is_empty() {
-                let values = probe_values(&scene, &result)?;
                 let path = out.join("probes.csv");
                 xfem_cut::output::write_probes(&path, &scene.probes, &values)?;
                 println!("wrote {}", path.display());

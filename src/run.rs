@@ -142,6 +142,7 @@ pub fn solve_scene_with(
         None => scene.mesh(level)?,
     };
     let t_mesh = t0.elapsed().as_secs_f64();
+    check_probes(scene, &mesh)?;
     if let (
         true,
         Analysis::Dynamic {
@@ -436,6 +437,32 @@ pub fn evaluate_on_side(
 }
 
 /// Probe displacements of a finished run.
+/// Refuses a probe outside the body before the solve (its value would be
+/// asked for only after it, when the run's time is spent).
+fn check_probes(scene: &Scene, mesh: &TetMesh) -> Result<(), RunError> {
+    if scene.probes.is_empty() {
+        return Ok(());
+    }
+    let locator = Locator::new(mesh);
+    match scene
+        .probes
+        .iter()
+        .position(|p| locator.locate(mesh, p).is_none())
+    {
+        Some(index) => {
+            let p = scene.probes[index];
+            Err(RunError::ProbeOutside {
+                file: scene.file.display().to_string(),
+                index,
+                x: p.x,
+                y: p.y,
+                z: p.z,
+            })
+        }
+        None => Ok(()),
+    }
+}
+
 pub fn probe_values(scene: &Scene, result: &RunResult) -> Result<Vec<Vector3<f64>>, RunError> {
     let locator = Locator::new(&result.model.mesh);
     scene

@@ -109,9 +109,28 @@ fn a_body_free_to_move_is_refused() {
     let (ok, err, _dir) = run_case(&text);
     assert!(!ok);
     assert!(
-        err.contains("not positive definite") || err.contains("floats free"),
+        err.contains("floats free") && err.contains("free to") && err.lines().count() == 1,
         "{err}"
     );
+}
+
+/// A probe outside the body is refused before the solve, and nothing is written.
+#[test]
+fn a_probe_outside_the_body_is_refused_before_anything_is_written() {
+    let text = GOOD.replace(
+        "points = [[0.0, 0.03, 0.2], [0.03, 0.06, 0.2]]",
+        "points = [[0.0, 0.03, 0.2], [0.03, 0.06, 0.25]]",
+    );
+    let (out, dir) = run_output(&text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("case.toml") && err.contains("probe 1") && err.contains("0.25"),
+        "{err}"
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(!stdout.contains("static: solve"), "{stdout}");
+    assert!(!dir.path().join("out").exists());
 }
 
 #[test]
