@@ -604,6 +604,11 @@ pub struct Newmark<'m> {
     steps_since_factor: usize,
     /// ‖f_ext‖ (a residual scale).
     load_norm: f64,
+    /// f_ε / tolerance ([`crate::statics::residual_scale_floor`]): the smallest
+    /// residual scale, so that a residual at the forces' round-off level
+    /// meets the tolerance (a body at rest under a tiny load, or moved
+    /// rigidly, has forces near zero and ‖r‖/‖f‖ near 1 whatever Newton does).
+    round_off: f64,
     /// Whether a factorisation of K_eff exists (current for linear scenes, maybe stale for PCG).
     factored: bool,
     pcg: Pcg,
@@ -845,6 +850,7 @@ impl<'m> Newmark<'m> {
             damping_current: false,
             steps_since_factor: 0,
             load_norm: norm(&model.load),
+            round_off: crate::statics::residual_scale_floor(model, opts.tolerance),
             factored: false,
             pcg: Pcg::new(model.n_free),
             warp: matches!(opts.linear_solver, LinearSolver::WarpedPcg { .. })
@@ -1369,8 +1375,13 @@ impl<'m> Newmark<'m> {
         for i in 0..d.len() {
             self.r_full[i] = model.load[i] - self.f_int[i] - self.mv[i];
         }
-        // Force scale of the residual: loads, internal and inertial forces.
-        let scale = self.load_norm.max(norm(&self.f_int)).max(norm(&self.mv));
+        // Force scale of the residual: loads, internal and inertial forces,
+        // not below their round-off level.
+        let scale = self
+            .load_norm
+            .max(norm(&self.f_int))
+            .max(norm(&self.mv))
+            .max(self.round_off);
         if o.rayleigh_mass != 0.0 {
             self.mass.product(model, &self.v_new, &mut self.mv);
             for i in 0..d.len() {

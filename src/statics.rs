@@ -106,7 +106,7 @@ pub fn solve_static_along(
     let mut r_full = vec![0.0; n];
     let mut start = vec![0.0; n];
     let load_norm = norm(&model.load);
-    let round_off = force_round_off(model) / opts.tolerance;
+    let round_off = residual_scale_floor(model, opts.tolerance);
     let mut tangent = vec![0.0; model.pattern.nnz()];
     let mut shifted = Vec::new();
     let mut rot = Rotations::identity(model);
@@ -311,6 +311,17 @@ pub fn force_round_off(model: &Model) -> f64 {
         .fold(0.0, f64::max);
     let modulus = model.lame.lambda + 2.0 * model.lame.mu;
     10.0 * f64::EPSILON * modulus * h * h * (model.n_free as f64).sqrt()
+}
+
+/// The smallest force scale of a relative residual with this tolerance:
+/// f_ε / tolerance ([`force_round_off`]), so that a residual at the round-off
+/// level meets it (0 for a tolerance that is not positive).
+pub fn residual_scale_floor(model: &Model, tolerance: f64) -> f64 {
+    if tolerance > 0.0 {
+        force_round_off(model) / tolerance
+    } else {
+        0.0
+    }
 }
 
 pub fn norm(v: &[f64]) -> f64 {
