@@ -1,6 +1,6 @@
 //! The `xfem-cut` command line: a thin layer over the library.
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 use xfem_cut::run::{probe_values, solve_scene_with};
@@ -123,6 +123,10 @@ fn run() -> Result<()> {
         } => {
             let scene = Scene::load(&case)?;
             let threads = threads()?;
+            // Refused before the solve rather than after it.
+            if out.exists() && !out.is_dir() {
+                anyhow::bail!("--out {}: exists and is not a directory", out.display());
+            }
             let result = solve_scene_with(
                 &scene,
                 level,
@@ -203,7 +207,8 @@ fn run() -> Result<()> {
             }
             // The probes' values first: an error writes nothing.
             let values = probe_values(&scene, &result)?;
-            std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+            std::fs::create_dir_all(&out)
+                .map_err(|e| anyhow::anyhow!("--out {}: cannot create it: {e}", out.display()))?;
             xfem_cut::output::write_result(&scene, &result, &out)?;
             if !scene.probes.is_empty() {
                 let path = out.join("probes.csv");
@@ -226,7 +231,7 @@ fn run() -> Result<()> {
             }
             if let Some(dir) = csv.parent().filter(|d| !d.as_os_str().is_empty()) {
                 std::fs::create_dir_all(dir)
-                    .with_context(|| format!("creating {}", dir.display()))?;
+                    .map_err(|e| anyhow::anyhow!("creating {}: {e}", dir.display()))?;
             }
             let rows = exact::run_study(&variants, |r| {
                 eprintln!(
@@ -236,7 +241,7 @@ fn run() -> Result<()> {
             })?;
             exact::write_csv(&csv, &rows)?;
             std::fs::write(&hash_path, format!("{hash}\n"))
-                .with_context(|| format!("writing {}", hash_path.display()))?;
+                .map_err(|e| anyhow::anyhow!("writing {}: {e}", hash_path.display()))?;
             println!("wrote {}", csv.display());
             Ok(())
         }
@@ -285,7 +290,7 @@ fn run() -> Result<()> {
         Command::Stress { csv, only } => {
             if let Some(dir) = csv.parent().filter(|d| !d.as_os_str().is_empty()) {
                 std::fs::create_dir_all(dir)
-                    .with_context(|| format!("creating {}", dir.display()))?;
+                    .map_err(|e| anyhow::anyhow!("creating {}: {e}", dir.display()))?;
             }
             let rows = xfem_cut::study::stress::run_suite(&only, |r| {
                 println!(

@@ -111,15 +111,34 @@ impl Scene {
 
         // Dirichlet nodes.
         let mut fixed_nodes: Vec<[Option<f64>; 3]> = vec![[None; 3]; mesh.n_nodes()];
+        // Which fix prescribed each component (two that disagree are refused).
+        let mut by: Vec<[usize; 3]> = vec![[usize::MAX; 3]; mesh.n_nodes()];
         for (i, fx) in self.fixes.iter().enumerate() {
             let mut count = 0;
             for (n, p) in mesh.nodes.iter().enumerate() {
                 if inside(p, &fx.min, &fx.max) {
                     count += 1;
                     for c in 0..3 {
-                        if fx.components[c] {
-                            fixed_nodes[n][c] = Some(fx.displacement[c]);
+                        if !fx.components[c] {
+                            continue;
                         }
+                        let value = fx.displacement[c];
+                        if let Some(other) = fixed_nodes[n][c].filter(|&v| v != value) {
+                            return Err(SceneError::Key {
+                                file,
+                                key: format!("fix[{i}].displacement"),
+                                message: format!(
+                                    "prescribes {value} in {} at node ({}, {}, {}), where fix[{}] prescribes {other}",
+                                    ["x", "y", "z"][c],
+                                    p.x,
+                                    p.y,
+                                    p.z,
+                                    by[n][c]
+                                ),
+                            });
+                        }
+                        fixed_nodes[n][c] = Some(value);
+                        by[n][c] = i;
                     }
                 }
             }

@@ -86,6 +86,17 @@ fn bad_input_gives_one_line_errors_naming_the_key() {
         (GOOD.replace("[[probe]]\npoints = [[0.0, 0.03, 0.2], [0.03, 0.06, 0.2]]", "[[probe]]\npoints = []"), "probe[0].points"),
         (GOOD.replace("density = 1070.0", "density = 1070.0\n[[cut]]\norigin = [0.0, 0.0, 0.1]\nu = [0.0, 0.0, 0.0]\nv = [0.0, 0.06, 0.0]"), "cut[0].v"),
         ("name = \"x\"\n[body\n".to_string(), "syntax"),
+        // A point, vector or box with more entries than it has (the typed
+        // read took the first ones and dropped the rest).
+        (GOOD.replace("acceleration = [9.81, 0.0, 0.0]", "acceleration = [9.81, 0.0, 0.0, 1e9]"), "gravity.acceleration"),
+        (GOOD.replace("levels = [[1, 2, 4]]", "levels = [[1, 2, 4, 99]]"), "body.levels[0]"),
+        (GOOD.replace("box = [[0.0, 0.0, 0.0], [0.03, 0.06, 0.2]]", "box = [[0.0, 0.0, 0.0], [0.03, 0.06, 0.2], [5.0, 5.0, 5.0]]"), "body.box"),
+        (GOOD.replace("[[probe]]\npoints = [[0.0, 0.03, 0.2], [0.03, 0.06, 0.2]]", "[[probe]]\npoints = [[0.0, 0.03, 0.2, 1.0]]"), "probe[0].points[0]"),
+        (GOOD.replace("density = 1070.0", "density = 1070.0\n[[cut]]\norigin = [0.0, 0.0, 0.1]\nu = [0.015, 0.0, 0.0, 0.0]\nv = [0.0, 0.06, 0.0]"), "cut[0].u"),
+        // Two fixes prescribing different displacements at the same nodes.
+        (GOOD.replace("[gravity]", "[[fix]]\nmin = [-inf, -inf, 0.0]\nmax = [inf, inf, 0.0]\ndisplacement = [0.01, 0.0, 0.0]\n[gravity]"), "fix[1].displacement"),
+        // So many load steps that their record cannot fit: named as such.
+        (GOOD.replace("type = \"static\"", "type = \"static\"\nformulation = \"corotational\"\nload_steps = 9223372036854775807"), "analysis.load_steps"),
     ];
     for (text, needle) in cases {
         let (ok, err, _dir) = run_case(&text);

@@ -1,6 +1,6 @@
 //! The memory a scene needs at one level, estimated before anything large is
 //! allocated, so that a case that cannot fit is refused with a one-line error
-//! naming the key (`body.levels`, `body.mesh`, `analysis.steps`) instead of
+//! naming the key (`body.levels`, `body.mesh`, `analysis.steps`, `analysis.load_steps`) instead of
 //! aborting on allocation or meeting the OOM killer.
 //!
 //! The estimate is a lower bound: mesh, element data, the stiffness pattern
@@ -146,6 +146,10 @@ impl Scene {
             return Ok(());
         }
         let (key, what) = match &self.analysis {
+            Analysis::Static(o) if e.history > e.model => (
+                "analysis.load_steps".to_string(),
+                format!("{} load steps", o.load_steps),
+            ),
             Analysis::Dynamic { options, .. } if e.history > e.model => (
                 "analysis.steps".to_string(),
                 format!(

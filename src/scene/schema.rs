@@ -193,7 +193,7 @@ pub fn deserialize(text: &str, path: &Path) -> Result<CaseFile, SceneError> {
         line: line_of(text, e.span()),
         message: one_line(e.message()),
     })?;
-    serde_path_to_error::deserialize(de).map_err(|e| {
+    let case: CaseFile = serde_path_to_error::deserialize(de).map_err(|e| {
         let mut key = e.path().to_string();
         let message = one_line(e.inner().message());
         // A missing or unknown key is named by its own path, not its table's.
@@ -228,7 +228,78 @@ pub fn deserialize(text: &str, path: &Path) -> Result<CaseFile, SceneError> {
         } else {
             SceneError::Key { file, key, message }
         }
-    })
+    })?;
+    // The typed read takes a point's first three numbers and a box's first
+    // two corners and drops the rest: refuse those instead.
+    if let Ok(table) = text.parse::<toml::Table>() {
+        check_lengths(&table, "").map_err(|(key, message)| SceneError::Key {
+            file: path.display().to_string(),
+            key,
+            message,
+        })?;
+    }
+    Ok(case)
+}
+
+/// Keys holding pairs of points (a box's corners, a blade's ends; each
+/// keyframe of a `path`).
+const PAIRS: [&str; 4] = ["box", "bbox", "blade", "path"];
+
+/// Every array of numbers in `table` (a point, a vector, a level's
+/// divisions) has 3 entries, `times` apart; the pairs of [`PAIRS`] have 2.
+fn check_lengths(table: &toml::Table, prefix: &str) -> Result<(), (String, String)> {
+    use toml::Value;
+    fn numbers(key: &str, v: &[Value], pair: bool) -> Result<(), (String, String)> {
+        let is_number = |x: &Value| matches!(x, Value::Integer(_) | Value::Float(_));
+        if !v.is_empty() && v.iter().all(is_number) {
+            if v.len() != 3 {
+                return Err((
+                    key.to_string(),
+                    format!("expected 3 numbers, got {}", v.len()),
+                ));
+            }
+            return Ok(());
+        }
+        let arrays: Vec<&Vec<Value>> = v.iter().filter_map(Value::as_array).collect();
+        if pair && arrays.len() == v.len() && !arrays.is_empty() {
+            // A pair of points, or (a path) a list of pairs.
+            if arrays.iter().all(|a| a.iter().all(is_number)) {
+                if v.len() != 2 {
+                    return Err((
+                        key.to_string(),
+                        format!("expected 2 points, got {}", v.len()),
+                    ));
+                }
+            } else {
+                for (i, a) in arrays.iter().enumerate() {
+                    numbers(&format!("{key}[{i}]"), a, true)?;
+                }
+                return Ok(());
+            }
+        }
+        for (i, a) in arrays.iter().enumerate() {
+            numbers(&format!("{key}[{i}]"), a, false)?;
+        }
+        Ok(())
+    }
+    for (k, v) in table {
+        let key = format!("{prefix}{k}");
+        match v {
+            Value::Table(t) => check_lengths(t, &format!("{key}."))?,
+            Value::Array(items) if items.iter().all(Value::is_table) && !items.is_empty() => {
+                for (i, t) in items.iter().enumerate() {
+                    if let Some(t) = t.as_table() {
+                        check_lengths(t, &format!("{key}[{i}]."))?;
+                    }
+                }
+            }
+            Value::Array(items) if k != "times" => {
+                numbers(&key, items, PAIRS.contains(&k.as_str()))?
+            }
+            _ => {}
+        }
+    }
+    Ok(())
 }
 
 fn one_line(s: &str) -> String {
