@@ -862,17 +862,9 @@ pub struct Projection {
 }
 
 /// Relative eigenvalue (or squared Cholesky pivot) of a Jacobi-scaled Gram
-/// matrix under which its functions count as dependent. The scaled matrix
-/// has unit diagonal: a combination of functions with eigenvalue κ has a
-/// norm √κ of theirs, and its least-squares coefficient amplifies the
-/// misfit along it by 1/√κ. With a blade on a node layer (faces the front
-/// crosses are lifted a snap off it, leaving sliver cells) such
-/// combinations reached κ = 1.6e-9 at 1e-12: their coefficients changed
-/// the energy by 2.2e-2 at an event and inverted the slivers' groups of a
-/// corotational Tet10 sweep within five steps. At 1e-8 (amplification
-/// ≤ 1e4) they are dropped (the pseudo-inverse), the energy change is
-/// 9.9e-3 and the sweep runs; events off the layer (κ ≥ 1e-3) are as before.
-pub const GRAM_RANK_TOL: f64 = 1e-8;
+/// matrix under which its functions count as dependent: the scaled matrix
+/// has unit diagonal, so 1e-12 leaves six digits of a double in the fit.
+pub const GRAM_RANK_TOL: f64 = 1e-12;
 
 /// Weight of the strain term of the displacement's fit, in units of the
 /// element size h squared: the fit minimises over each element
