@@ -77,6 +77,8 @@ fn main() {
     }
     let state = nm.state.clone();
     let (model_b, stats) = model_a.update_cut(setup_b.clone()).unwrap();
+    let (_, projection) = map_state_reported_with(&model_a, &model_b, &state, par);
+    println!("projection: {projection:?}");
     let changed: Vec<usize> = (0..mesh.n_elements())
         .filter(|&e| {
             !xfem_cut::model::same_element_model(

@@ -1591,3 +1591,67 @@ fn a_path_turning_in_its_plane_cuts_with_events_that_keep_both_energies() {
         }
     }
 }
+
+/// A Tet10 corotational sweep with the blade on a node layer (z = 0.08 of
+/// 10 layers over 0.2), under gravity across it: the front crosses the
+/// layer's faces, which are lifted a snap off it, and the projection at
+/// events meets nearly dependent functions on the sliver cells (scaled Gram
+/// eigenvalues down to 1.6e-9). Their coefficients change the energy by
+/// 2.2e-2 at an event and invert the slivers' groups: Newton fails at the
+/// fifth step (found through the CLI with generated scenes). Dropping
+/// directions under 1e-8 instead of 1e-12 lets it run (energy change
+/// 9.9e-3), but sends the 1k Tet10 bench's event to the dense
+/// pseudo-inverse (2.7 s instead of 0.08 s), so it is not done: a known
+/// failure until the fit handles them at sparse cost. Off the layer
+/// (z = 0.083), with `front = "extend"`, Tet4 or the linear formulation it runs.
+#[test]
+#[ignore = "known failure: corotational Tet10 tip sweep on a node layer (see the doc comment)"]
+fn a_corotational_tet10_sweep_on_a_node_layer_runs() {
+    let text = r#"name = "layer"
+[body]
+box = [[0.0, 0.0, 0.0], [0.03, 0.06, 0.2]]
+levels = [[2, 4, 10]]
+element = "tet10"
+[material]
+young = 3.0e5
+poisson = 0.35
+density = 1070.0
+[[cut]]
+blade = [[-0.01, -0.01, 0.08], [0.04, -0.01, 0.08]]
+travel = [0.0, 0.08, 0.0]
+start = 0.0
+end = 0.1
+[[fix]]
+min = [-inf, -inf, 0.0]
+max = [inf, inf, 0.0]
+[gravity]
+acceleration = [9.81, 0.0, 0.0]
+[analysis]
+type = "dynamic"
+formulation = "corotational"
+dt = 0.01
+steps = 10
+rayleigh = { mass = 5.0, stiffness = 0.0 }
+"#;
+    let scene = xfem_cut::scene::Scene::parse(text, std::path::Path::new("layer.toml")).unwrap();
+    let run = xfem_cut::run::solve_scene(&scene, 0, None, false).unwrap_or_else(|e| panic!("{e}"));
+    let sweep = run.sweep.unwrap();
+    assert!(sweep.events.len() >= 6, "{} events", sweep.events.len());
+    let worst = sweep
+        .events
+        .iter()
+        .map(|e| {
+            let (b, a) = (
+                e.before.kinetic + e.before.strain,
+                e.after.kinetic + e.after.strain,
+            );
+            (a - b).abs() / b.max(1e-30)
+        })
+        .fold(0.0, f64::max);
+    println!(
+        "{} events, largest energy change {worst:.1e}",
+        sweep.events.len()
+    );
+    assert!(worst < 0.02, "{worst:e}");
+    assert!(run.d.iter().all(|v| v.is_finite()));
+}
