@@ -448,9 +448,20 @@ fn read_stl(path: &Path) -> Result<TriangleSurface, SurfaceError> {
         source,
     };
     let mut file = std::fs::File::open(path).map_err(read_err)?;
-    let mesh = stl_io::read_stl(&mut file).map_err(|e| SurfaceError::Invalid {
-        file: path.to_path_buf(),
-        message: format!("not a readable STL file: {e}"),
+    let mesh = stl_io::read_stl(&mut file).map_err(|e| {
+        let empty = std::fs::metadata(path).is_ok_and(|m| m.len() == 0);
+        let message = if empty {
+            "the file is empty".to_string()
+        } else if e.kind() == std::io::ErrorKind::UnexpectedEof {
+            // stl_io reads what is not ASCII as binary and runs off its end.
+            "neither an ASCII STL (solid … endsolid) nor a complete binary one (80-byte header, triangle count, 50 bytes a triangle)".to_string()
+        } else {
+            format!("not a readable STL file: {e}")
+        };
+        SurfaceError::Invalid {
+            file: path.to_path_buf(),
+            message,
+        }
     })?;
     let mut vertices: Vec<Point3<f64>> = mesh
         .vertices

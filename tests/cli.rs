@@ -268,11 +268,27 @@ fn cut_kinds_run_or_are_refused_clearly() {
             "type = \"dynamic\"\ndt = 0.01\nsteps = 2",
         )
     };
-    assert_refused(&[(
-        with_cut(&format!("surface = \"{}\"", stl.display())),
-        "cut[0].surface",
-        "no triangles",
-    )]);
+    let empty = dir.path().join("empty.stl");
+    std::fs::write(&empty, "").unwrap();
+    let garbage = dir.path().join("garbage.stl");
+    std::fs::write(&garbage, "not an stl at all").unwrap();
+    assert_refused(&[
+        (
+            with_cut(&format!("surface = \"{}\"", stl.display())),
+            "cut[0].surface",
+            "no triangles",
+        ),
+        (
+            with_cut(&format!("surface = \"{}\"", empty.display())),
+            "cut[0].surface",
+            "the file is empty",
+        ),
+        (
+            with_cut(&format!("surface = \"{}\"", garbage.display())),
+            "cut[0].surface",
+            "neither an ASCII STL",
+        ),
+    ]);
     // Each runs: the seed's front extended or tip-enriched, per-cut snaps, a
     // static blade (its completed sweep).
     for cut in [
