@@ -1151,7 +1151,7 @@ pub fn project_tip_change_with(
         }
     }
     let (x_d, displacement, cond_d) = gram_d.solve(rhs_d);
-    let (x_l, rates, cond_l) = solve_gram(gram_l, rhs_l);
+    let (x_l, rates, cond_l) = solve_gram(gram_l, rhs_l, RATES_DAMPING);
     for (k, &s) in fitted.iter().enumerate() {
         for c in 0..3 {
             mapped.d[3 * s + c] = x_d[3 * k + c];
@@ -1282,21 +1282,39 @@ impl BlockGram {
                 dense[(c, r)] = self.values[k];
             }
         }
-        let (x, how, ratio) = solve_gram(dense, nalgebra::DMatrix::from_vec(n, 1, b));
+        let (x, how, ratio) = solve_gram(dense, nalgebra::DMatrix::from_vec(n, 1, b), 0.0);
         (x.as_slice().to_vec(), how, ratio)
     }
 }
+
+/// Damping δ of the velocity's and acceleration's Gram (scaled to unit
+/// diagonal): solved as (G + δI) with [`DAMPING_REFINEMENTS`] refinements on
+/// G, which keeps a direction of eigenvalue λ ≫ δ exact to (δ/λ)³ and
+/// shrinks one of λ ≪ δ to about 3λ/δ of its least-squares coefficient.
+/// With a blade on a node layer (faces the front crosses lifted a snap off
+/// it: sliver cells, eigenvalues down to 1e-9) the undamped fit gave the
+/// rates of nearly dependent functions coefficients amplified by 1/λ, and
+/// the next step of a corotational Tet10 sweep inverted the slivers' groups
+/// (Newton failed at its fifth step; found through the CLI). δ = 1e-8 with
+/// two refinements still failed at step 9; 1e-7 runs.
+const RATES_DAMPING: f64 = 1e-7;
+
+/// Refinements of a damped Gram solve ([`RATES_DAMPING`]).
+const DAMPING_REFINEMENTS: usize = 2;
 
 /// Solves the symmetric positive semi-definite Gram system G x = b: scaled
 /// to unit diagonal (S G S y = S b, x = S y, S = diag(G)^-½), by Cholesky
 /// (faer's dense one, on one thread) when its smallest squared pivot over
 /// the largest is above [`GRAM_RANK_TOL`], else by the pseudo-inverse over
-/// the eigenvalues above it. Also returns that ratio (smallest eigenvalue
-/// over largest for the pseudo-inverse). A function with zero norm (zero
-/// diagonal) gets zero.
+/// the eigenvalues above it. With `damping` δ > 0 the Cholesky is that of
+/// the scaled G + δI, refined [`DAMPING_REFINEMENTS`] times on G (iterated
+/// Tikhonov: nearly dependent directions damped, the others kept). Also
+/// returns that ratio (smallest eigenvalue over largest for the
+/// pseudo-inverse). A function with zero norm (zero diagonal) gets zero.
 fn solve_gram(
     mut g: nalgebra::DMatrix<f64>,
     mut b: nalgebra::DMatrix<f64>,
+    damping: f64,
 ) -> (nalgebra::DMatrix<f64>, GramSolve, f64) {
     let n = g.nrows();
     let scale: Vec<f64> = (0..n)
@@ -1331,8 +1349,21 @@ fn solve_gram(
         }
         y
     };
-    if let Some((y, ratio)) = dense_cholesky_solve(&g, &b) {
+    let mut damped = g.clone();
+    for i in 0..n {
+        damped[(i, i)] += damping;
+    }
+    if let Some((l, ratio)) = dense_cholesky(&damped) {
         if ratio > GRAM_RANK_TOL {
+            let mut y = dense_llt_solve(&l, &b);
+            for _ in 0..if damping > 0.0 {
+                DAMPING_REFINEMENTS
+            } else {
+                0
+            } {
+                let r = &b - &g * &y;
+                y += dense_llt_solve(&l, &r);
+            }
             return (unscale(y), GramSolve::Cholesky, ratio);
         }
     }
@@ -1362,13 +1393,10 @@ fn solve_gram(
 /// G y = b by faer's dense Cholesky on one thread, with the smallest
 /// squared pivot over the largest; `None` where G is not numerically
 /// positive definite.
-fn dense_cholesky_solve(
-    g: &nalgebra::DMatrix<f64>,
-    b: &nalgebra::DMatrix<f64>,
-) -> Option<(nalgebra::DMatrix<f64>, f64)> {
+fn dense_cholesky(g: &nalgebra::DMatrix<f64>) -> Option<(faer::Mat<f64>, f64)> {
     use faer::dyn_stack::{MemBuffer, MemStack};
     use faer::linalg::cholesky::llt;
-    let (n, m) = (g.nrows(), b.ncols());
+    let n = g.nrows();
     let mut l = faer::Mat::<f64>::from_fn(n, n, |i, j| if i >= j { g[(i, j)] } else { 0.0 });
     let par = faer::Par::Seq;
     let mut mem = MemBuffer::new(llt::factor::cholesky_in_place_scratch::<f64>(
@@ -1389,6 +1417,15 @@ fn dense_cholesky_solve(
         .fold((f64::INFINITY, 0.0f64), |(lo, hi), p| {
             (lo.min(p), hi.max(p))
         });
+    Some((l, (lo / hi).powi(2)))
+}
+
+/// L Lᵀ y = b with the factor of [`dense_cholesky`] (one thread).
+fn dense_llt_solve(l: &faer::Mat<f64>, b: &nalgebra::DMatrix<f64>) -> nalgebra::DMatrix<f64> {
+    use faer::dyn_stack::{MemBuffer, MemStack};
+    use faer::linalg::cholesky::llt;
+    let (n, m) = (l.nrows(), b.ncols());
+    let par = faer::Par::Seq;
     let mut x = faer::Mat::<f64>::from_fn(n, m, |i, j| b[(i, j)]);
     let mut mem = MemBuffer::new(llt::solve::solve_in_place_scratch::<f64>(n, m, par));
     llt::solve::solve_in_place_with_conj(
@@ -1398,10 +1435,7 @@ fn dense_cholesky_solve(
         par,
         MemStack::new(&mut mem),
     );
-    Some((
-        nalgebra::DMatrix::from_fn(n, m, |i, j| x[(i, j)]),
-        (lo / hi).powi(2),
-    ))
+    nalgebra::DMatrix::from_fn(n, m, |i, j| x[(i, j)])
 }
 
 /// [`map_state`] without the projection: DOFs that change meaning keep
