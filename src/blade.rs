@@ -1390,9 +1390,9 @@ fn solve_gram(
     (unscale(y), GramSolve::Pseudo { dropped }, lowest / top)
 }
 
-/// G y = b by faer's dense Cholesky on one thread, with the smallest
-/// squared pivot over the largest; `None` where G is not numerically
-/// positive definite.
+/// The Cholesky factor L of G (faer's dense one, on one thread; the lower
+/// triangle), with the smallest squared pivot over the largest; `None`
+/// where G is not numerically positive definite.
 fn dense_cholesky(g: &nalgebra::DMatrix<f64>) -> Option<(faer::Mat<f64>, f64)> {
     use faer::dyn_stack::{MemBuffer, MemStack};
     use faer::linalg::cholesky::llt;
