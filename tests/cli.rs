@@ -583,3 +583,35 @@ fn a_blade_run_reports_its_steps_apart_from_its_events() {
     assert!(ms[0] > 0.0 && ms[0] <= ms[1], "{steps}");
     assert!(line("sweep ").contains("cut events"), "{stdout}");
 }
+
+/// Bad command-line arguments: one line naming the argument and the value,
+/// exit 2 (clap's usage hint is not repeated); `--help` still prints help.
+#[test]
+fn bad_arguments_give_one_line_naming_them() {
+    let case = cases().join("gravity.toml");
+    for (args, words) in [
+        (
+            vec!["run", case.to_str().unwrap(), "--level", "abc"],
+            "'abc'",
+        ),
+        (vec!["run"], "<CASE>"),
+        (vec!["bogus"], "'bogus'"),
+        (
+            vec!["run", case.to_str().unwrap(), "--frobnicate"],
+            "'--frobnicate'",
+        ),
+    ] {
+        let out = Command::new(bin()).args(&args).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert_eq!(
+            err.trim_end().lines().count(),
+            1,
+            "{args:?}: not one line: {err}"
+        );
+        assert!(err.contains(words), "{args:?}: {err}");
+    }
+    let help = Command::new(bin()).arg("--help").output().unwrap();
+    assert!(help.status.success());
+    assert!(String::from_utf8_lossy(&help.stdout).contains("Usage: xfem-cut"));
+}
