@@ -1349,11 +1349,16 @@ fn solve_gram(
         }
         y
     };
-    let mut damped = g.clone();
-    for i in 0..n {
-        damped[(i, i)] += damping;
-    }
-    if let Some((l, ratio)) = dense_cholesky(&damped) {
+    // G + δI (a copy only where δ > 0: the undamped fallback of a large
+    // displacement Gram factorises G itself).
+    let damped = (damping > 0.0).then(|| {
+        let mut d = g.clone();
+        for i in 0..n {
+            d[(i, i)] += damping;
+        }
+        d
+    });
+    if let Some((l, ratio)) = dense_cholesky(damped.as_ref().unwrap_or(&g)) {
         if ratio > GRAM_RANK_TOL {
             let mut y = dense_llt_solve(&l, &b);
             for _ in 0..if damping > 0.0 {
