@@ -18,10 +18,12 @@
 //!   solved by refactorisation or by [`BorderedSolve`] on the old factor),
 //!   and one solve of each.
 //!
-//! - Tip front (the default): `tip_event` (set-up, model update, state
-//!   mapped and projected, the step after it with symbolic and numeric
-//!   factorisation) and its costliest phases `tip_update`, `tip_map_state`
-//!   (linear only: the same for both formulations), beside `tip_step_sweep`
+//! - Tip front (the default): `tip_event` (set-up, model update with the
+//!   projection's integrals of the tip elements as `run_dynamic` takes them,
+//!   state mapped and projected, the step after it with symbolic and numeric
+//!   factorisation) and its costliest phases as separate calls, `tip_update`
+//!   and `tip_map_state` (the projection evaluating every element itself;
+//!   linear only: the same for both formulations), beside `tip_step_sweep`
 //!   (a step on the tip-cut beam), and `tip_event_2threads` (the event on two
 //!   threads). `examples/tip_event.rs` splits it further.
 //!
@@ -29,9 +31,7 @@
 
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion};
 use std::hint::black_box;
-use xfem_cut::blade::{
-    map_state, map_state_reported_with, same_setup, stiffness_plus_mass, CutSet,
-};
+use xfem_cut::blade::{map_state, map_state_fitted_with, same_setup, stiffness_plus_mass, CutSet};
 use xfem_cut::cut::CutSetup;
 use xfem_cut::dynamics::{DynamicOptions, LinearFactor, LinearForces, Newmark, State};
 use xfem_cut::mesh::TetMesh;
@@ -335,8 +335,16 @@ fn benches(c: &mut Criterion) {
             group.bench_function(BenchmarkId::new("tip_event", &name), |b| {
                 b.iter(|| {
                     let s = cuts.setup_at(&mesh, t_b).unwrap();
-                    let (m, _) = model_a.update_cut(s).unwrap();
-                    let mapped = map_state(&model_a, &m, &state_a);
+                    let (m, _, _, fits) = model_a
+                        .update_cut_fitted_with(s, &state_a, Parallelism::SEQUENTIAL)
+                        .unwrap();
+                    let (mapped, _) = map_state_fitted_with(
+                        &model_a,
+                        &m,
+                        &state_a,
+                        &fits,
+                        Parallelism::SEQUENTIAL,
+                    );
                     first_step(&m, Cholesky::new(&m.pattern).unwrap(), mapped, opts);
                 })
             });
@@ -347,8 +355,8 @@ fn benches(c: &mut Criterion) {
             group.bench_function(BenchmarkId::new("tip_event_2threads", &name), |b| {
                 b.iter(|| {
                     let s = cuts.setup_at(&mesh, t_b).unwrap();
-                    let (m, _, _) = model_a.update_cut_mapped_with(s, two).unwrap();
-                    let (mapped, _) = map_state_reported_with(&model_a, &m, &state_a, two);
+                    let (m, _, _, fits) = model_a.update_cut_fitted_with(s, &state_a, two).unwrap();
+                    let (mapped, _) = map_state_fitted_with(&model_a, &m, &state_a, &fits, two);
                     first_step_on(&m, Cholesky::new(&m.pattern).unwrap(), mapped, opts, two);
                 })
             });

@@ -28,7 +28,7 @@ use crate::dynamics::{
     DynamicError, DynamicOptions, Energies, EventSolve, LinearFactor, LinearForces, Newmark, State,
 };
 use crate::mesh::TetMesh;
-use crate::model::{Model, ModelError};
+use crate::model::{Model, ModelError, TipFit, TipFits};
 #[cfg(doc)]
 use crate::solve::BorderedSolve;
 use crate::solve::{Cholesky, Parallelism, SolveError};
@@ -824,8 +824,23 @@ pub fn map_state_reported_with(
     state: &State,
     parallelism: Parallelism,
 ) -> (State, Option<Projection>) {
+    map_state_fitted_with(old, new, state, &TipFits::new(), parallelism)
+}
+
+/// [`map_state_reported_with`] with the integrals `fits` of the elements
+/// that [`Model::update_cut_fitted_with`] took on its way from `old` (whose
+/// field `state` is) to `new`: the projection evaluates the old field and
+/// the new functions only on the other elements (the same fit up to
+/// round-off: the same points, summed in another order).
+pub fn map_state_fitted_with(
+    old: &Model,
+    new: &Model,
+    state: &State,
+    fits: &TipFits,
+    parallelism: Parallelism,
+) -> (State, Option<Projection>) {
     let mut mapped = map_state_unprojected(old, new, state);
-    let report = project_tip_change_with(old, new, state, &mut mapped, parallelism);
+    let report = project_fitted(old, new, state, &mut mapped, fits, parallelism);
     // Enriched DOFs prescribed at a fixed node hold zero (a fit may have set
     // the prescribed components of a partly fixed shape function).
     let first_enriched = 3 * new.mesh.n_nodes();
@@ -928,6 +943,19 @@ pub fn project_tip_change_with(
     new: &Model,
     state: &State,
     mapped: &mut State,
+    parallelism: Parallelism,
+) -> Option<Projection> {
+    project_fitted(old, new, state, mapped, &TipFits::new(), parallelism)
+}
+
+/// [`project_tip_change_with`], an element's integrals taken from `fits`
+/// where it has them ([`map_state_fitted_with`]).
+fn project_fitted(
+    old: &Model,
+    new: &Model,
+    state: &State,
+    mapped: &mut State,
+    fits: &TipFits,
     parallelism: Parallelism,
 ) -> Option<Projection> {
     let (Some(oc), Some(nc)) = (&old.cut, &new.cut) else {
@@ -1038,6 +1066,11 @@ pub fn project_tip_change_with(
             .filter(|&(_, &s)| slot[s as usize] != usize::MAX)
             .map(|(a, &s)| (a, slot[s as usize]))
             .collect();
+        let h = new.mesh.element_size(e);
+        let beta = GRADIENT_WEIGHT * h * h;
+        if let Some(fit) = fits.get(&e) {
+            return fitted_element(fit, local, beta, ratio, ids, &slot, &*mapped);
+        }
         let old_ids = old.element_shapes(e);
         let (ev_new, ev_old) = (new.element_evaluator(e), old.element_evaluator(e));
         let mut points = Vec::new();
@@ -1047,8 +1080,6 @@ pub fn project_tip_change_with(
             vec![0.0; old_ids.len()],
             vec![Vector3::zeros(); old_ids.len()],
         );
-        let h = new.mesh.element_size(e);
-        let beta = GRADIENT_WEIGHT * h * h;
         // The fitted functions' values (nl rows) and gradients (3 nl rows:
         // component c of function i at row c nl + i) at the points (a column
         // each), for the Grams as products A W Aᵀ.
@@ -1165,6 +1196,73 @@ pub fn project_tip_change_with(
         rates,
         conditioning: cond_d.min(cond_l),
     })
+}
+
+/// An element's [`ElementFit`] from the integrals a model update took
+/// ([`TipFit`]): its functions `ids` (`local` the fitted ones with their
+/// slots), the Grams restricted to the fitted functions, and the
+/// right-hand sides: the old field's integrals less the Grams' products
+/// with the mapped values of the functions not fitted.
+fn fitted_element(
+    fit: &TipFit,
+    local: Vec<(usize, usize)>,
+    beta: f64,
+    ratio: f64,
+    ids: &[u32],
+    slot: &[usize],
+    mapped: &State,
+) -> ElementFit {
+    let nl = local.len();
+    let g = &fit.gradients;
+    // The displacement Gram's entry (a c, b d) and the L² Gram's (a, b).
+    let kd = |a: usize, c: usize, b: usize, d: usize| {
+        let mut v = beta * (ratio * g[(3 * a + c, 3 * b + d)] + g[(3 * a + d, 3 * b + c)]);
+        if c == d {
+            let trace: f64 = (0..3).map(|k| g[(3 * a + k, 3 * b + k)]).sum();
+            v += fit.l2[(a, b)] + beta * trace;
+        }
+        v
+    };
+    let not_fitted: Vec<usize> = (0..ids.len())
+        .filter(|&b| slot[ids[b] as usize] == usize::MAX)
+        .collect();
+    let mut rhs_d = vec![0.0; 3 * nl];
+    let mut rhs_l = nalgebra::DMatrix::<f64>::zeros(nl, 6);
+    let mut l2 = nalgebra::DMatrix::<f64>::zeros(nl, nl);
+    let mut g2 = nalgebra::DMatrix::<f64>::zeros(3 * nl, 3 * nl);
+    for (i, &(a, _)) in local.iter().enumerate() {
+        for c in 0..3 {
+            rhs_d[3 * i + c] = fit.values[(a, c)] + beta * fit.strain[3 * a + c];
+            rhs_l[(i, c)] = fit.values[(a, 3 + c)];
+            rhs_l[(i, 3 + c)] = fit.values[(a, 6 + c)];
+        }
+        for &b in &not_fitted {
+            let s = ids[b] as usize;
+            for c in 0..3 {
+                for d in 0..3 {
+                    rhs_d[3 * i + c] -= kd(a, c, b, d) * mapped.d[3 * s + d];
+                }
+                rhs_l[(i, c)] -= fit.l2[(a, b)] * mapped.v[3 * s + c];
+                rhs_l[(i, 3 + c)] -= fit.l2[(a, b)] * mapped.a[3 * s + c];
+            }
+        }
+        for (j, &(b, _)) in local.iter().enumerate() {
+            l2[(i, j)] = fit.l2[(a, b)];
+            for c in 0..3 {
+                for d in 0..3 {
+                    g2[(c * nl + i, d * nl + j)] = g[(3 * a + c, 3 * b + d)];
+                }
+            }
+        }
+    }
+    ElementFit {
+        local,
+        beta,
+        l2,
+        g2,
+        rhs_d,
+        rhs_l,
+    }
 }
 
 /// A symmetric matrix of 3 × 3 blocks (function pairs) on a sparse
@@ -1778,18 +1876,23 @@ pub fn run_dynamic_with(
         // Only the elements the grown cut changed are integrated again
         // (a model with a varying body force is built again: its equations
         // are numbered afresh).
+        // The projection's integrals of the elements the update integrated.
+        let mut fits = TipFits::new();
         let (new_model, changed_elements, renumbered) = if model.body_force {
             let m = build(setup)?;
             let n = m.mesh.n_elements();
             (m, n, true)
         } else {
-            let (m, stats, update) = model.update_cut_mapped_with(setup, parallelism)?;
+            let (m, stats, update, tip_fits) =
+                model.update_cut_fitted_with(setup, &state, parallelism)?;
             // The stiffness moved over and mended where the elements changed.
             forces = old_forces.map(|f| f.updated(&model, &m, &update));
+            fits = tip_fits;
             (m, stats.changed_elements, stats.dropped_equations > 0)
         };
         let model_seconds = t_model.elapsed().as_secs_f64();
-        let (mapped, projection) = map_state_reported_with(&model, &new_model, &state, parallelism);
+        let (mapped, projection) =
+            map_state_fitted_with(&model, &new_model, &state, &fits, parallelism);
         sweep.projections.push(projection);
         let pattern_changed = new_model.pattern.col_ptr != model.pattern.col_ptr
             || new_model.pattern.row_idx != model.pattern.row_idx;

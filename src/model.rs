@@ -281,6 +281,7 @@ impl Model {
             body_force,
             need_mass,
             stiffness: true,
+            old: None,
         };
         let mut flat = FlatElements::with_capacity(mesh.n_elements(), mesh.cells.len());
         let mut globals = Globals::new(n_shape, cut.as_ref(), need_mass);
@@ -1124,6 +1125,8 @@ struct Cell {
 /// (nodes, then Heaviside-enriched nodes, then tip functions) and its
 /// integration cells with their volumes.
 struct ElementCells {
+    /// The element's index in the mesh.
+    element: usize,
     verts: [Point3<f64>; 4],
     dl: [Vector3<f64>; 4],
     /// Global shape-function ids.
@@ -1206,6 +1209,7 @@ fn element_cells(
         shape_ids.extend(shapes.tip_shape_ids(n_nodes + c.n_enriched));
     }
     Ok(ElementCells {
+        element: e,
         verts,
         dl,
         shape_ids,
@@ -1235,6 +1239,106 @@ struct ElementBlock {
     lumped: Vec<f64>,
     coupling: Vec<f64>,
     mass: Vec<f64>,
+    /// With an old field to fit ([`Integrator::old`]), a tip element's
+    /// integrals for the event's projection.
+    fit: Option<Box<TipFit>>,
+}
+
+/// A cut event's projection integrals of one element holding tip functions
+/// in the new model ([`Model::update_cut_fitted_with`]), taken on the points
+/// that integrate its block (the points [`Model::field_points`] gives),
+/// with the new shape functions φ_a in [`Model::element_shapes`] order and
+/// the old model's field (u, v, a) at each point:
+/// what [`crate::blade::project_tip_change`] would otherwise evaluate the
+/// new functions again for.
+#[derive(Debug, Clone)]
+pub struct TipFit {
+    /// m × m: ∫ φ_a φ_b.
+    pub l2: nalgebra::DMatrix<f64>,
+    /// 3m × 3m: ∫ ∂_i φ_a ∂_j φ_b at (3a + i, 3b + j).
+    pub gradients: nalgebra::DMatrix<f64>,
+    /// m × 9: ∫ φ_a u, ∫ φ_a v, ∫ φ_a a (three columns each).
+    pub values: nalgebra::DMatrix<f64>,
+    /// 3m: ∫ ε(φ_a e_c) : C : ε(u) / μ = ∫ (∇u + ∇uᵀ)_c · ∇φ_a + (λ/μ) div u ∂_c φ_a at 3a + c.
+    pub strain: Vec<f64>,
+}
+
+/// Per element (index), its [`TipFit`].
+pub type TipFits = std::collections::HashMap<usize, TipFit>;
+
+/// A field of a model to fit at a cut event: its displacement, velocity
+/// and acceleration (all DOFs of `model`).
+#[derive(Clone, Copy)]
+pub struct OldField<'a> {
+    pub model: &'a Model,
+    pub d: &'a [f64],
+    pub v: &'a [f64],
+    pub a: &'a [f64],
+}
+
+/// What a tip element's block collects for its [`TipFit`], point by point:
+/// the old field on the element, w (u, v, a) per point (9 each, in the
+/// order of the points' shape values), and per side (as the dense groups'
+/// gradient columns) w (∇u + ∇uᵀ + (λ/μ) div u I), column-major.
+struct FitPoints {
+    field: ElementField,
+    fields: Vec<f64>,
+    strains: [Vec<f64>; 3],
+}
+
+/// An [`OldField`] on one element: its evaluator and its DOF values.
+struct ElementField {
+    ev: ElementEvaluator,
+    d: Vec<Vector3<f64>>,
+    v: Vec<Vector3<f64>>,
+    a: Vec<Vector3<f64>>,
+    vals: Vec<f64>,
+    grads: Vec<Vector3<f64>>,
+}
+
+impl ElementField {
+    fn new(field: &OldField<'_>, e: usize) -> ElementField {
+        let ev = field.model.element_evaluator(e);
+        let ids = field.model.element_shapes(e);
+        let at = |x: &[f64]| -> Vec<Vector3<f64>> {
+            ids.iter()
+                .map(|&s| {
+                    let s = s as usize;
+                    Vector3::new(x[3 * s], x[3 * s + 1], x[3 * s + 2])
+                })
+                .collect()
+        };
+        ElementField {
+            d: at(field.d),
+            v: at(field.v),
+            a: at(field.a),
+            vals: vec![0.0; ids.len()],
+            grads: vec![Vector3::zeros(); ids.len()],
+            ev,
+        }
+    }
+
+    /// u, ∇u (row c = ∇u_c), v and a at `x` on side `side`.
+    fn at(
+        &mut self,
+        x: &Point3<f64>,
+        side: i8,
+    ) -> (Vector3<f64>, Matrix3<f64>, Vector3<f64>, Vector3<f64>) {
+        self.ev.eval(x, side, &mut self.vals, &mut self.grads);
+        let (mut u, mut gu, mut v, mut a) = (
+            Vector3::zeros(),
+            Matrix3::zeros(),
+            Vector3::zeros(),
+            Vector3::zeros(),
+        );
+        for (k, (&n, g)) in self.vals.iter().zip(&self.grads).enumerate() {
+            u += self.d[k] * n;
+            gu += self.d[k] * g.transpose();
+            v += self.v[k] * n;
+            a += self.a[k] * n;
+        }
+        (u, gu, v, a)
+    }
 }
 
 /// What step 2 integrates with: the rules, loads and density of a build.
@@ -1249,6 +1353,9 @@ struct Integrator<'a> {
     /// Whether to integrate the stiffness (groups, gradients); without it
     /// only the loads and masses of a tip element's block.
     stiffness: bool,
+    /// The old field a cut event projects: with it, a tip element's block
+    /// (with dense groups and mass) carries its [`TipFit`].
+    old: Option<OldField<'a>>,
 }
 
 impl Integrator<'_> {
@@ -1284,6 +1391,7 @@ impl Integrator<'_> {
             lumped: Vec::new(),
             coupling: Vec::new(),
             mass: Vec::new(),
+            fit: None,
         };
         if self.need_mass {
             if direct.is_none() {
@@ -1328,6 +1436,18 @@ impl Integrator<'_> {
         let (mut mass_values, mut mass_weights) = (Vec::new(), Vec::new());
         // Per cell: ∫N_k and ∫N_k² for the lumped mass.
         let (mut lump_n, mut lump_n2) = (Vec::new(), Vec::new());
+        // A cut event's fit: the old field on this element, and the
+        // integrals of the new functions against it (the Grams come from
+        // the mass and the dense groups below).
+        let mut fit = self
+            .old
+            .filter(|_| self.stiffness && !per_point && self.need_mass && self.rho > 0.0)
+            .map(|old| FitPoints {
+                field: ElementField::new(&old, cells.element),
+                fields: Vec::new(),
+                strains: Default::default(),
+            });
+        let ratio = self.lame.lambda / self.lame.mu;
         for cell in &cells.cells {
             let (mut int_n, mut int_n2) = ([0.0; 10], [0.0; 10]);
             let (columns, weights) = &mut sides[(cell.side + 1) as usize];
@@ -1335,6 +1455,18 @@ impl Integrator<'_> {
                 let bary = shapes.bary(&q.x);
                 let w = q.weight;
                 shapes.eval(&bary, cell.side, &mut vals, &mut gr);
+                if let Some(fit) = fit.as_mut() {
+                    // The old field's w u, w v, w a (against the values) and
+                    // w ((∇u + ∇uᵀ) + (λ/μ) div u I) (against the gradients).
+                    let (u, gu, v, a) = fit.field.at(&q.x, cell.side);
+                    fit.fields.extend((u * w).iter());
+                    fit.fields.extend((v * w).iter());
+                    fit.fields.extend((a * w).iter());
+                    let strain =
+                        (gu + gu.transpose() + Matrix3::identity() * (gu.trace() * ratio)) * w;
+                    // Column-major: entry (c, j) at 3j + c.
+                    fit.strains[(cell.side + 1) as usize].extend(strain.iter());
+                }
                 if !self.stiffness {
                 } else if per_point {
                     block.groups.push(Group::point(w, block.grads.len() as u32));
@@ -1368,9 +1500,15 @@ impl Integrator<'_> {
         if self.need_mass {
             self.lump(cells, &lump_n, &lump_n2, block, sink);
         }
+        let mut gradients = fit
+            .as_ref()
+            .map(|_| nalgebra::DMatrix::<f64>::zeros(3 * m, 3 * m));
         for (columns, weights) in &sides {
             if self.stiffness && !weights.is_empty() {
-                self.dense_group(m, columns, weights, block);
+                let a = self.dense_group(m, columns, weights, block);
+                if let Some(g) = gradients.as_mut() {
+                    *g += a;
+                }
             }
         }
         if self.need_mass && !mass_weights.is_empty() {
@@ -1382,6 +1520,38 @@ impl Integrator<'_> {
             // Row-major m × m, symmetric: the column-major product is the same.
             let mut mass = nalgebra::DMatrixViewMut::from_slice(&mut block.mass, m, m);
             mass.gemm(1.0, &vw, &v.transpose(), 1.0);
+        }
+        if let (Some(fit), Some(gradients)) = (fit, gradients) {
+            let l2 = nalgebra::DMatrix::from_row_slice(m, m, &block.mass) / self.rho;
+            // Σ_q φ_a(x_q) w_q F_q (the points in `mass_values`' order).
+            let n = fit.fields.len() / 9;
+            let v = nalgebra::DMatrixView::from_slice(&mass_values, m, n);
+            let f = nalgebra::DMatrixView::from_slice(&fit.fields, 9, n);
+            let values = v * f.transpose();
+            // Σ_q S_q ∇φ_a(x_q) per side, from one product of the side's
+            // gradient columns C (3m × n) with its matrices (9 × n, entry
+            // (c, j) at row 3j + c): X = C Sᵀ, strain_{3a+c} = Σ_j X_{3a+j, 3j+c}.
+            let mut strain = vec![0.0; 3 * m];
+            for ((columns, weights), strains) in sides.iter().zip(&fit.strains) {
+                let n = weights.len();
+                if n == 0 {
+                    continue;
+                }
+                let c = nalgebra::DMatrixView::from_slice(columns, 3 * m, n);
+                let s = nalgebra::DMatrixView::from_slice(strains, 9, n);
+                let x = c * s.transpose();
+                for (a, out) in strain.chunks_exact_mut(3).enumerate() {
+                    for (ci, o) in out.iter_mut().enumerate() {
+                        *o += (0..3).map(|j| x[(3 * a + j, 3 * j + ci)]).sum::<f64>();
+                    }
+                }
+            }
+            block.fit = Some(Box::new(TipFit {
+                l2,
+                gradients,
+                values,
+                strain,
+            }));
         }
         if self.need_mass {
             // Tip DOFs: the diagonal of the consistent mass (no coupling).
@@ -1395,8 +1565,14 @@ impl Integrator<'_> {
     /// Appends the dense group of points with gradients `columns` (3m per
     /// point) and weights `weights`: weight Σw, gradients ḡ_a = Σ w g_a / Σw
     /// and K_ab = λ A_ab + μ A_abᵀ + μ tr(A_ab) I with A = Σ_q w_q G_q G_qᵀ
-    /// (G_q the point's 3m gradient components: one matrix product).
-    fn dense_group(&self, m: usize, columns: &[f64], weights: &[f64], block: &mut ElementBlock) {
+    /// (G_q the point's 3m gradient components: one matrix product); returns A.
+    fn dense_group(
+        &self,
+        m: usize,
+        columns: &[f64],
+        weights: &[f64],
+        block: &mut ElementBlock,
+    ) -> nalgebra::DMatrix<f64> {
         let n = 3 * m;
         let nq = weights.len();
         let g = nalgebra::DMatrixView::from_slice(columns, n, nq);
@@ -1436,6 +1612,7 @@ impl Integrator<'_> {
             grads,
             stiffness,
         });
+        a
     }
 
     /// Elements without tip functions: per cell, the stiffness points
@@ -2342,6 +2519,38 @@ impl Model {
         cut: Option<CutSetup>,
         parallelism: Parallelism,
     ) -> Result<(Model, UpdateStats, CutUpdate), ModelError> {
+        self.update_cut_inner(cut, parallelism, None)
+            .map(|(model, stats, update, _)| (model, stats, update))
+    }
+
+    /// [`Model::update_cut_mapped_with`] that also integrates, for a cut
+    /// event's projection of `state` (this model's field), the [`TipFit`]
+    /// of each element integrated again that holds tip functions in the
+    /// new model, on the points of its new block: the projection
+    /// ([`crate::blade::map_state_fitted_with`]) then evaluates only the
+    /// elements without one. A model integrated point by point
+    /// ([`Integration::SubTetQuadrature`]) or without mass gives none.
+    pub fn update_cut_fitted_with(
+        &self,
+        cut: Option<CutSetup>,
+        state: &crate::dynamics::State,
+        parallelism: Parallelism,
+    ) -> Result<(Model, UpdateStats, CutUpdate, TipFits), ModelError> {
+        let old = OldField {
+            model: self,
+            d: &state.d,
+            v: &state.v,
+            a: &state.a,
+        };
+        self.update_cut_inner(cut, parallelism, Some(old))
+    }
+
+    fn update_cut_inner(
+        &self,
+        cut: Option<CutSetup>,
+        parallelism: Parallelism,
+        old: Option<OldField<'_>>,
+    ) -> Result<(Model, UpdateStats, CutUpdate, TipFits), ModelError> {
         if self.body_force {
             return Err(ModelError::BodyForceUpdate);
         }
@@ -2359,11 +2568,13 @@ impl Model {
             body_force: None,
             need_mass,
             stiffness: true,
+            old,
         };
         // A changed element's old block is integrated again only for what
         // it added to the loads and masses (its stiffness is dropped whole).
         let old_integrator = Integrator {
             stiffness: false,
+            old: None,
             ..integrator
         };
         let mut stats = UpdateStats::default();
@@ -2391,6 +2602,7 @@ impl Model {
         // Elements: kept, or integrated again (old block out, new block in).
         let mut flat = FlatElements::with_capacity(mesh.n_elements(), self.shape_ids.len());
         let mut changed: Vec<(usize, ElementBlock)> = Vec::new();
+        let mut fits = TipFits::new();
         let mut old_masses: Vec<(usize, Vec<f64>)> = Vec::new();
         // The changed elements' old contributions (loads, masses) and new
         // blocks, integrated side by side; added below in element order.
@@ -2455,6 +2667,10 @@ impl Model {
             }
             globals.add(&block, n_nodes);
             flat.push_block(e, &block);
+            let mut block = block;
+            if let Some(fit) = block.fit.take() {
+                fits.insert(e, *fit);
+            }
             changed.push((e, block));
         }
         stats.changed_elements = changed.len();
@@ -2719,6 +2935,6 @@ impl Model {
                 );
             }
         }
-        Ok((model, stats, update))
+        Ok((model, stats, update, fits))
     }
 }
