@@ -1091,7 +1091,8 @@ fn project_fitted(
         let mut rhs_l = nalgebra::DMatrix::<f64>::zeros(nl, 6);
         for (q, &(x, w, side)) in points.iter().enumerate() {
             ev_new.eval(&x, side, &mut vals, &mut grads);
-            ev_old.eval(&x, side, &mut old_vals, &mut old_grads);
+            // The old field on the side x lies on in the old element.
+            ev_old.eval(&x, ev_old.side_at(&x, side), &mut old_vals, &mut old_grads);
             // Residual r and (for d) its gradient ∇r (row c = ∇r_c).
             let mut r = [Vector3::zeros(); 3];
             let mut gr = Matrix3::zeros();

@@ -668,6 +668,34 @@ impl ElementEvaluator {
             .map_or(0.0, |s| (0..4).map(|k| s.phi[k] * bary[k]).sum())
     }
 
+    /// The side of the cut that `x` lies on in this element: its fixed
+    /// side, or in a cut element the sign of its interpolated φ at `x`
+    /// (`hint`, else +1, where φ is within round-off of 0: on its cut).
+    /// Another model's cells (a cut event's) may cut the element elsewhere
+    /// or not at all: a point of an uncut cell (side 0) in an element cut
+    /// here, or of a cell on the other side of a cut moved by a lift, is on
+    /// this side, and the field there holds its enrichment.
+    pub fn side_at(&self, x: &Point3<f64>, hint: i8) -> i8 {
+        if let Some(side) = self.fixed_side {
+            return side;
+        }
+        let phi = self.phi_at(x);
+        let size = self
+            .shapes
+            .as_ref()
+            .map_or(0.0, |s| s.phi.iter().fold(0.0f64, |m, p| m.max(p.abs())));
+        let tol = 1e-12 * size;
+        if phi > tol {
+            1
+        } else if phi < -tol {
+            -1
+        } else if hint != 0 {
+            hint
+        } else {
+            1
+        }
+    }
+
     /// Values and gradients of the shape functions at reference point `x`,
     /// on side `side` of the cut; `vals` and `grads` hold [`Self::len`] each.
     pub fn eval(&self, x: &Point3<f64>, side: i8, vals: &mut [f64], grads: &mut [Vector3<f64>]) {
@@ -1324,6 +1352,8 @@ impl ElementField {
         x: &Point3<f64>,
         side: i8,
     ) -> (Vector3<f64>, Matrix3<f64>, Vector3<f64>, Vector3<f64>) {
+        // The old field on the side x lies on in the old element.
+        let side = self.ev.side_at(x, side);
         self.ev.eval(x, side, &mut self.vals, &mut self.grads);
         let (mut u, mut gu, mut v, mut a) = (
             Vector3::zeros(),
