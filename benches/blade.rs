@@ -23,7 +23,8 @@
 //!   state mapped and projected, the step after it with symbolic and numeric
 //!   factorisation) and its costliest phases as separate calls, `tip_update`
 //!   and `tip_map_state` (the projection evaluating every element itself;
-//!   linear only: the same for both formulations), beside `tip_step_sweep`
+//!   linear only: the same for both formulations), `tip_update_fitted` and
+//!   `tip_map_state_fitted` (the two as the sweep runs them), beside `tip_step_sweep`
 //!   (a step on the tip-cut beam), and `tip_event_2threads` (the event on two
 //!   threads). `examples/tip_event.rs` splits it further.
 //!
@@ -367,6 +368,28 @@ fn benches(c: &mut Criterion) {
                 });
                 group.bench_function(BenchmarkId::new("tip_map_state", &name), |b| {
                     b.iter(|| black_box(map_state(&model_a, &model_b, &state_a)))
+                });
+                // As the sweep runs them: the update taking the projection's
+                // integrals of the tip elements, and the projection left.
+                let seq = Parallelism::SEQUENTIAL;
+                group.bench_function(BenchmarkId::new("tip_update_fitted", &name), |b| {
+                    b.iter(|| {
+                        black_box(
+                            model_a
+                                .update_cut_fitted_with(setup_b.clone(), &state_a, seq)
+                                .unwrap(),
+                        )
+                    })
+                });
+                let (fitted_b, _, _, fits) = model_a
+                    .update_cut_fitted_with(setup_b.clone(), &state_a, seq)
+                    .unwrap();
+                group.bench_function(BenchmarkId::new("tip_map_state_fitted", &name), |b| {
+                    b.iter(|| {
+                        black_box(map_state_fitted_with(
+                            &model_a, &fitted_b, &state_a, &fits, seq,
+                        ))
+                    })
                 });
             }
             group.bench_function(BenchmarkId::new("tip_step_sweep", &name), |b| {
