@@ -1610,9 +1610,11 @@ pub struct Event {
     pub border: Option<usize>,
     /// Elements integrated again ([`Model::update_cut`]).
     pub changed_elements: usize,
-    /// Seconds of the model update and of the symbolic factorisation (both
-    /// in `seconds`; the numeric factorisation or the border's set-up is in
-    /// the next step's time).
+    /// Seconds of the model update (with the projection's integrals of the
+    /// elements holding tip functions, which it takes as it integrates
+    /// them: [`Model::update_cut_fitted_with`]) and of the symbolic
+    /// factorisation (both in `seconds`; the numeric factorisation or the
+    /// border's set-up is in the next step's time).
     pub model_seconds: f64,
     pub symbolic_seconds: f64,
     /// Seconds spent in the event (set-up, model, state map, symbolic).

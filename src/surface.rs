@@ -452,6 +452,9 @@ fn read_stl(path: &Path) -> Result<TriangleSurface, SurfaceError> {
         let empty = std::fs::metadata(path).is_ok_and(|m| m.len() == 0);
         let message = if empty {
             "the file is empty".to_string()
+        } else if e.to_string().contains("expected finite") {
+            // stl_io's words for a coordinate it read as NaN or infinity.
+            "a vertex coordinate is not a finite number (NaN or infinity)".to_string()
         } else if e.kind() == std::io::ErrorKind::UnexpectedEof {
             // stl_io reads what is not ASCII as binary and runs off its end.
             "neither an ASCII STL (solid … endsolid) nor a complete binary one (80-byte header, triangle count, 50 bytes a triangle)".to_string()

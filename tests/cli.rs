@@ -272,6 +272,12 @@ fn cut_kinds_run_or_are_refused_clearly() {
     std::fs::write(&empty, "").unwrap();
     let garbage = dir.path().join("garbage.stl");
     std::fs::write(&garbage, "not an stl at all").unwrap();
+    let nan = dir.path().join("nan.stl");
+    std::fs::write(
+        &nan,
+        "solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0.1\nvertex NaN 0 0.1\nvertex 0 1 0.1\nendloop\nendfacet\nendsolid s\n",
+    )
+    .unwrap();
     assert_refused(&[
         (
             with_cut(&format!("surface = \"{}\"", stl.display())),
@@ -287,6 +293,11 @@ fn cut_kinds_run_or_are_refused_clearly() {
             with_cut(&format!("surface = \"{}\"", garbage.display())),
             "cut[0].surface",
             "neither an ASCII STL",
+        ),
+        (
+            with_cut(&format!("surface = \"{}\"", nan.display())),
+            "cut[0].surface",
+            "a vertex coordinate is not a finite number",
         ),
     ]);
     // Each runs: the seed's front extended or tip-enriched, per-cut snaps, a
