@@ -971,6 +971,46 @@ impl ElementShapes {
 const NEAR_FRONT_DEPTH: usize = 1;
 const NEAR_FRONT_GAP: f64 = 0.5;
 
+/// Sides of a tip element under this fraction of its volume share the
+/// largest side's group (and rotation): see [`merge_small_sides`].
+const SMALL_SIDE: f64 = 1e-3;
+
+/// Moves the points of each side of a tip element smaller than
+/// [`SMALL_SIDE`] of the element's volume into its largest side (columns,
+/// weights and the fit's strains alike), so they share its dense group and
+/// rotation. A side that small (a corner or sliver a lifted face or the
+/// snap leaves, down to 1e-12 of the element) holds DOFs that little else
+/// constrains; with a rotation of its own it inverted and made the exact
+/// tangent indefinite, and Newton stalled (a blade 1e-7 off a node layer,
+/// Tet10 corotational). With the largest side's rotation its energy is
+/// quadratic in them; the cost is a stiffness of that fraction of the
+/// element against the two sides' relative rotation (none in linear runs,
+/// whose groups do not rotate).
+fn merge_small_sides(
+    sides: &mut [(Vec<f64>, Vec<f64>); 3],
+    fit: Option<&mut FitPoints>,
+    volume: f64,
+) {
+    let totals = sides.each_ref().map(|(_, w)| w.iter().sum::<f64>().abs());
+    let Some(largest) = (0..3).max_by(|&a, &b| totals[a].total_cmp(&totals[b])) else {
+        return;
+    };
+    let mut fit = fit;
+    #[allow(clippy::needless_range_loop)]
+    for s in 0..3 {
+        if s == largest || sides[s].1.is_empty() || totals[s] >= SMALL_SIDE * volume {
+            continue;
+        }
+        let (columns, weights) = std::mem::take(&mut sides[s]);
+        sides[largest].0.extend(columns);
+        sides[largest].1.extend(weights);
+        if let Some(fit) = fit.as_deref_mut() {
+            let strains = std::mem::take(&mut fit.strains[s]);
+            fit.strains[largest].extend(strains);
+        }
+    }
+}
+
 /// Cells under this fraction of their element's volume take rules of lower
 /// order ([`ElementShapes::cell_rule`]).
 const SLIVER: f64 = 1e-3;
@@ -1548,6 +1588,9 @@ impl Integrator<'_> {
         }
         if self.need_mass {
             self.lump(cells, &lump_n, &lump_n2, block, sink);
+        }
+        if !per_point {
+            merge_small_sides(&mut sides, fit.as_mut(), shapes.volume);
         }
         let mut gradients = fit
             .as_ref()
