@@ -1070,6 +1070,51 @@ fn eval_shapes(
 }
 
 /// Equation numbers of an element's local DOFs (3 per shape function).
+/// The lower entries (column, row), row ≥ column, that elements with
+/// equations `elements` (NONE for a fixed DOF) put in a matrix of order
+/// `n`, sorted and each once: bucketed by column, duplicates dropped with a
+/// marker per row, each column's few rows sorted (a sort of all entries,
+/// 136k at a 1k-Tet4 tip event for 24k distinct, took 2.6 ms of it).
+fn changed_entries(elements: impl Iterator<Item = Vec<u32>>, n: usize) -> Vec<(u32, u32)> {
+    let mut lists: Vec<Vec<u32>> = Vec::new();
+    let mut count = vec![0usize; n + 1];
+    for mut dofs in elements {
+        dofs.retain(|&d| d != NONE);
+        dofs.sort_unstable();
+        for (i, &c) in dofs.iter().enumerate() {
+            count[c as usize + 1] += dofs.len() - i;
+        }
+        lists.push(dofs);
+    }
+    for c in 0..n {
+        count[c + 1] += count[c];
+    }
+    let mut rows = vec![0u32; count[n]];
+    let mut next = count.clone();
+    for dofs in &lists {
+        for (i, &c) in dofs.iter().enumerate() {
+            let at = next[c as usize];
+            rows[at..at + dofs.len() - i].copy_from_slice(&dofs[i..]);
+            next[c as usize] += dofs.len() - i;
+        }
+    }
+    let mut seen = vec![NONE; n];
+    let mut out = Vec::new();
+    let mut column = Vec::new();
+    for c in 0..n {
+        column.clear();
+        for &r in &rows[count[c]..count[c + 1]] {
+            if seen[r as usize] != c as u32 {
+                seen[r as usize] = c as u32;
+                column.push(r);
+            }
+        }
+        column.sort_unstable();
+        out.extend(column.iter().map(|&r| (c as u32, r)));
+    }
+    out
+}
+
 pub fn element_equations(shapes: &[u32], equation: &[u32]) -> Vec<u32> {
     shapes
         .iter()
@@ -2842,20 +2887,13 @@ impl Model {
         // the changed elements' entries; eq_map keeps the old order, so the
         // old rows stay sorted and each old entry's new position is known.
         let old = &self.pattern;
-        let mut extra: Vec<(u32, u32)> = Vec::new();
-        for (e, _) in &changed {
-            let el = &flat.elements[*e];
-            let dofs = element_equations(&flat.shape_ids[el.shapes.clone()], &equation);
-            for &r in &dofs {
-                for &c in &dofs {
-                    if r != NONE && c != NONE && r >= c {
-                        extra.push((c, r));
-                    }
-                }
-            }
-        }
-        extra.sort_unstable();
-        extra.dedup();
+        let extra = changed_entries(
+            changed.iter().map(|(e, _)| {
+                let el = &flat.elements[*e];
+                element_equations(&flat.shape_ids[el.shapes.clone()], &equation)
+            }),
+            n_free,
+        );
         let mut old_column = vec![NONE; n_free];
         for (c, &cn) in eq_map.iter().enumerate() {
             if cn != NONE {
@@ -3028,5 +3066,45 @@ impl Model {
             }
         }
         Ok((model, stats, update, fits))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// [`changed_entries`] against sorting all pairs: elements of 4–30
+    /// equations (some fixed, some shared) in a matrix of order 200.
+    #[test]
+    fn changed_entries_are_the_sorted_distinct_lower_pairs() {
+        let mut seed = 12345u64;
+        let mut next = move |k: u64| {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 33) % k
+        };
+        let elements: Vec<Vec<u32>> = (0..60)
+            .map(|_| {
+                let len = 4 + next(27) as usize;
+                (0..len)
+                    .map(|_| if next(8) == 0 { NONE } else { next(200) as u32 })
+                    .collect()
+            })
+            .collect();
+        let mut expected = Vec::new();
+        for dofs in &elements {
+            for &r in dofs {
+                for &c in dofs {
+                    if r != NONE && c != NONE && r >= c {
+                        expected.push((c, r));
+                    }
+                }
+            }
+        }
+        expected.sort_unstable();
+        expected.dedup();
+        assert!(expected.len() > 1000);
+        assert_eq!(changed_entries(elements.into_iter(), 200), expected);
     }
 }
