@@ -1069,7 +1069,6 @@ fn eval_shapes(
     }
 }
 
-/// Equation numbers of an element's local DOFs (3 per shape function).
 /// The lower entries (column, row), row ≥ column, that elements with
 /// equations `elements` (NONE for a fixed DOF) put in a matrix of order
 /// `n`, sorted and each once: bucketed by column, duplicates dropped with a
@@ -1115,6 +1114,7 @@ fn changed_entries(elements: impl Iterator<Item = Vec<u32>>, n: usize) -> Vec<(u
     out
 }
 
+/// Equation numbers of an element's local DOFs (3 per shape function).
 pub fn element_equations(shapes: &[u32], equation: &[u32]) -> Vec<u32> {
     shapes
         .iter()
