@@ -1711,26 +1711,29 @@ fn a_corotational_tet10_sweep_on_a_node_layer_runs() {
 /// its section at height `z` during [0, 0.1] s (10 steps of 0.01 s, mass
 /// damping 5/s), run through the CLI's solve.
 fn layer_sweep(z: f64, formulation: &str) -> xfem_cut::run::RunResult {
-    layer_sweep_with(z, formulation, 3.0e5, 10, 0.08, 10)
+    layer_sweep_with(z, formulation, "tet10", 3.0e5, [2, 4, 10], 0.08, 10)
 }
 
-/// [`layer_sweep`] with the material's Young's modulus, the layers, the
-/// blade's travel across the section (from 1 cm before it; 0.07 and more
-/// take it through, the section being 6 cm wide) and the steps.
+/// [`layer_sweep`] with the element, the material's Young's modulus, the
+/// mesh divisions (x, y, z), the blade's travel across the section (from
+/// 1 cm before it; 0.07 and more take it through, the section being 6 cm
+/// wide) and the steps.
 fn layer_sweep_with(
     z: f64,
     formulation: &str,
+    element: &str,
     young: f64,
-    layers: usize,
+    divisions: [usize; 3],
     travel: f64,
     steps: usize,
 ) -> xfem_cut::run::RunResult {
+    let [nx, ny, nz] = divisions;
     let text = format!(
         r#"name = "layer"
 [body]
 box = [[0.0, 0.0, 0.0], [0.03, 0.06, 0.2]]
-levels = [[2, 4, {layers}]]
-element = "tet10"
+levels = [[{nx}, {ny}, {nz}]]
+element = "{element}"
 [material]
 young = {young:e}
 poisson = 0.35
@@ -1801,7 +1804,15 @@ fn a_blade_within_the_snap_of_a_node_layer_changes_the_energy_little_at_its_even
 #[test]
 fn a_soft_blade_stopping_by_a_node_layer_converges_at_every_step() {
     for (layers, z, travel) in [(8, 0.0500001, 0.0674), (10, 0.0400001, 0.0463)] {
-        let run = layer_sweep_with(z, "corotational", 3.0e4, layers, travel, 14);
+        let run = layer_sweep_with(
+            z,
+            "corotational",
+            "tet10",
+            3.0e4,
+            [2, 4, layers],
+            travel,
+            14,
+        );
         let sweep = run.sweep.unwrap();
         assert!(sweep.events.len() >= 7, "{} events", sweep.events.len());
         let most = run.iterations.iter().copied().max().unwrap_or(0);
@@ -1826,37 +1837,19 @@ fn a_soft_blade_stopping_by_a_node_layer_converges_at_every_step() {
 /// `xfem-cut run`), and it is a loss, never a gain, of strain energy.
 #[test]
 fn the_energy_a_moving_tip_front_loses_at_its_events_falls_with_h() {
-    let text = r#"name = "stiff"
-[body]
-box = [[0.0, 0.0, 0.0], [0.03, 0.06, 0.2]]
-levels = [[2, 4, 10], [4, 8, 20]]
-element = "tet4"
-[material]
-young = 3.0e6
-poisson = 0.35
-density = 1070.0
-[[cut]]
-blade = [[-0.01, -0.01, 0.0400001], [0.04, -0.01, 0.0400001]]
-travel = [0.0, 0.0873, 0.0]
-start = 0.0
-end = 0.1
-[[fix]]
-min = [-inf, -inf, 0.0]
-max = [inf, inf, 0.0]
-[gravity]
-acceleration = [9.81, 0.0, 0.0]
-[analysis]
-type = "dynamic"
-formulation = "corotational"
-dt = 0.01
-steps = 10
-rayleigh = { mass = 5.0, stiffness = 0.0 }
-"#;
-    let scene = xfem_cut::scene::Scene::parse(text, std::path::Path::new("stiff.toml")).unwrap();
-    let worst: Vec<f64> = (0..2)
-        .map(|level| {
-            let run = xfem_cut::run::solve_scene(&scene, level, None, false)
-                .unwrap_or_else(|e| panic!("{e}"));
+    let worst: Vec<f64> = [[2, 4, 10], [4, 8, 20]]
+        .into_iter()
+        .enumerate()
+        .map(|(level, divisions)| {
+            let run = layer_sweep_with(
+                0.0400001,
+                "corotational",
+                "tet4",
+                3.0e6,
+                divisions,
+                0.0873,
+                10,
+            );
             let sweep = run.sweep.unwrap();
             let event = sweep
                 .events
