@@ -915,10 +915,9 @@ impl ElementShapes {
         let sliver = tet_volume(cell).abs() < SLIVER * self.volume;
         if on_front.iter().any(|&b| b) {
             let n = match (self.kind, sliver) {
+                (_, true) => 3,
                 (ElementKind::Tet4, false) => 4,
                 (ElementKind::Tet10, false) => 5,
-                (ElementKind::Tet4, true) => 3,
-                (ElementKind::Tet10, true) => 3,
             };
             return front::cell_rule(cell, on_front, n);
         }
@@ -988,14 +987,13 @@ const SMALL_SIDE: f64 = 1e-3;
 /// whose groups do not rotate).
 fn merge_small_sides(
     sides: &mut [(Vec<f64>, Vec<f64>); 3],
-    fit: Option<&mut FitPoints>,
+    mut fit: Option<&mut FitPoints>,
     volume: f64,
 ) {
     let totals = sides.each_ref().map(|(_, w)| w.iter().sum::<f64>().abs());
     let Some(largest) = (0..3).max_by(|&a, &b| totals[a].total_cmp(&totals[b])) else {
         return;
     };
-    let mut fit = fit;
     #[allow(clippy::needless_range_loop)]
     for s in 0..3 {
         if s == largest || sides[s].1.is_empty() || totals[s] >= SMALL_SIDE * volume {
