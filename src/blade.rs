@@ -297,7 +297,10 @@ impl Blade {
             return Some(Swept::Growing(GrowingPatch { full, part }));
         }
         // A prefix of the completed strip, which `new` checked.
-        self.strip(t).ok().flatten().map(Swept::Strip)
+        self.strip(t)
+            .ok()
+            .flatten()
+            .map(|s| Swept::Strip(Box::new(s)))
     }
 
     /// The strip swept by time t: between consecutive keyframes [a0, b0] and
@@ -403,7 +406,8 @@ pub enum Swept {
     Patch(PlanarPatch),
     /// A straight sweep under way.
     Growing(GrowingPatch),
-    Strip(TriangleSurface),
+    /// A path's ruled strip (boxed: a triangle surface carries its index).
+    Strip(Box<TriangleSurface>),
 }
 
 impl Swept {
@@ -411,7 +415,7 @@ impl Swept {
         match self {
             Swept::Patch(p) => p,
             Swept::Growing(g) => g,
-            Swept::Strip(s) => s,
+            Swept::Strip(s) => s.as_ref(),
         }
     }
 
@@ -420,7 +424,7 @@ impl Swept {
         match self {
             Swept::Patch(p) => Box::new(p),
             Swept::Growing(g) => Box::new(g),
-            Swept::Strip(s) => Box::new(s),
+            Swept::Strip(s) => s,
         }
     }
 }
@@ -2043,7 +2047,7 @@ mod tests {
         let strips: Vec<TriangleSurface> = times
             .iter()
             .map(|&t| match path.swept(t) {
-                Some(Swept::Strip(s)) => s,
+                Some(Swept::Strip(s)) => *s,
                 _ => panic!("a path sweeps a strip"),
             })
             .collect();

@@ -140,6 +140,86 @@ fn plane_coordinates(
     ((ru * vv - rv * uv) / det, (rv * uu - ru * uv) / det)
 }
 
+/// The boundary edges' sides: chains of boundary edges that continue each
+/// other in a straight line (at a vertex with two boundary edges, opposite
+/// directions within 1e-9 rad). Returns each boundary edge's side, each
+/// side's neighbours (the sides at its ends, itself included), and each
+/// boundary vertex's boundary edges.
+#[allow(clippy::type_complexity)]
+fn boundary_sides(
+    vertices: &[Point3<f64>],
+    edges: &HashMap<(usize, usize), (Vector3<f64>, bool)>,
+) -> (
+    HashMap<(usize, usize), usize>,
+    Vec<Vec<usize>>,
+    HashMap<usize, Vec<(usize, usize)>>,
+) {
+    let mut boundary: Vec<(usize, usize)> = edges
+        .iter()
+        .filter(|(_, &(_, b))| b)
+        .map(|(&k, _)| k)
+        .collect();
+    boundary.sort_unstable();
+    let index: HashMap<(usize, usize), usize> =
+        boundary.iter().enumerate().map(|(n, &k)| (k, n)).collect();
+    let mut at: HashMap<usize, Vec<(usize, usize)>> = HashMap::new();
+    for &(i, j) in &boundary {
+        at.entry(i).or_default().push((i, j));
+        at.entry(j).or_default().push((i, j));
+    }
+    // Union–find over collinear continuations.
+    let mut parent: Vec<usize> = (0..boundary.len()).collect();
+    fn root(parent: &mut [usize], mut a: usize) -> usize {
+        while parent[a] != a {
+            parent[a] = parent[parent[a]];
+            a = parent[a];
+        }
+        a
+    }
+    for (&v, es) in &at {
+        if let [e, f] = es.as_slice() {
+            let other = |(i, j): (usize, usize)| if i == v { j } else { i };
+            let (a, b) = (
+                vertices[other(*e)] - vertices[v],
+                vertices[other(*f)] - vertices[v],
+            );
+            if a.dot(&b) < 0.0 && a.cross(&b).norm() <= 1e-9 * a.norm() * b.norm() {
+                let (ra, rb) = (root(&mut parent, index[e]), root(&mut parent, index[f]));
+                parent[ra] = rb;
+            }
+        }
+    }
+    let mut id = HashMap::new();
+    let mut side = vec![0; boundary.len()];
+    for n in 0..boundary.len() {
+        let r = root(&mut parent, n);
+        let next = id.len();
+        side[n] = *id.entry(r).or_insert(next);
+    }
+    let mut neighbours: Vec<Vec<usize>> = (0..id.len()).map(|s| vec![s]).collect();
+    for es in at.values() {
+        for e in es {
+            for f in es {
+                let (se, sf) = (side[index[e]], side[index[f]]);
+                if !neighbours[se].contains(&sf) {
+                    neighbours[se].push(sf);
+                }
+            }
+        }
+    }
+    let side_of = boundary
+        .iter()
+        .enumerate()
+        .map(|(n, &k)| (k, side[n]))
+        .collect();
+    (side_of, neighbours, at)
+}
+
+/// A point's coordinates as bits (a key for exact lookups).
+fn bits(p: &Point3<f64>) -> [u64; 3] {
+    [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()]
+}
+
 fn edge_key(i: usize, j: usize) -> (usize, usize) {
     (i.min(j), i.max(j))
 }
@@ -157,6 +237,19 @@ pub struct TriangleSurface {
     /// Angle-weighted pseudo-normal per vertex, and whether it is on the boundary.
     vertex_normals: Vec<Vector3<f64>>,
     vertex_on_boundary: Vec<bool>,
+    /// Per boundary edge: the unit direction in its triangle's plane,
+    /// normal to the edge, into the triangle (the side the surface is on).
+    inward: HashMap<(usize, usize), Vector3<f64>>,
+    /// Vertex index by its coordinates' bits (front segments are given as
+    /// points).
+    vertex_at: HashMap<[u64; 3], usize>,
+    /// Per boundary edge: its side, a chain of collinear boundary edges (a
+    /// planar patch written as many triangles has its four sides back).
+    side_of: HashMap<(usize, usize), usize>,
+    /// Per side: the sides meeting it at its two ends, itself included.
+    side_neighbours: Vec<Vec<usize>>,
+    /// Per boundary vertex: its boundary edges.
+    boundary_at: HashMap<usize, Vec<(usize, usize)>>,
     tree: RTree<Tri>,
 }
 
@@ -193,6 +286,7 @@ impl TriangleSurface {
         let mut normals = Vec::with_capacity(triangles.len());
         let mut vertex_normals = vec![Vector3::zeros(); vertices.len()];
         let mut count: HashMap<(usize, usize), (Vector3<f64>, usize)> = HashMap::new();
+        let mut inward: HashMap<(usize, usize), Vector3<f64>> = HashMap::new();
         for (t, tri) in triangles.iter().enumerate() {
             if tri.iter().any(|&i| i >= vertices.len()) {
                 return Err(invalid(format!("triangle {t} references a missing vertex")));
@@ -209,6 +303,13 @@ impl TriangleSurface {
                 let e = count.entry(edge_key(i, j)).or_insert((Vector3::zeros(), 0));
                 e.0 += n;
                 e.1 += 1;
+                // Into the triangle from edge (i, j): towards vertex l.
+                let along = vertices[j] - vertices[i];
+                let mut w = n.cross(&along).normalize();
+                if w.dot(&(vertices[l] - vertices[i])) < 0.0 {
+                    w = -w;
+                }
+                inward.insert(edge_key(i, j), w);
                 // Angle at vertex i.
                 let (u, w) = (vertices[j] - vertices[i], vertices[l] - vertices[i]);
                 let angle = u.angle(&w);
@@ -229,6 +330,13 @@ impl TriangleSurface {
             }
             edges.insert((i, j), (n, c == 1));
         }
+        inward.retain(|k, _| edges[k].1);
+        let vertex_at = vertices
+            .iter()
+            .enumerate()
+            .map(|(i, p)| (bits(p), i))
+            .collect();
+        let (side_of, side_neighbours, boundary_at) = boundary_sides(&vertices, &edges);
         for n in &mut vertex_normals {
             if n.norm() > 0.0 {
                 *n = n.normalize();
@@ -251,6 +359,11 @@ impl TriangleSurface {
             edges,
             vertex_normals,
             vertex_on_boundary,
+            inward,
+            vertex_at,
+            side_of,
+            side_neighbours,
+            boundary_at,
             tree,
         })
     }
@@ -282,6 +395,32 @@ impl TriangleSurface {
             .expect("a surface has triangles");
         let (c, f) = closest_point(&tri.p, x);
         (tri.index, c, f)
+    }
+
+    /// Whether x is inside the half-plane (in its triangle's plane) of
+    /// every front segment on one of the sides `near` (see
+    /// `behind_front`). `None` where a front segment is not a boundary edge
+    /// of this surface.
+    fn inside_front_sides(
+        &self,
+        x: &Point3<f64>,
+        front: &[[Point3<f64>; 2]],
+        near: &[usize],
+    ) -> Option<bool> {
+        for seg in front {
+            let (i, j) = (
+                self.vertex_at.get(&bits(&seg[0]))?,
+                self.vertex_at.get(&bits(&seg[1]))?,
+            );
+            let key = edge_key(*i, *j);
+            if !near.contains(self.side_of.get(&key)?) {
+                continue;
+            }
+            if (x - seg[0]).dot(self.inward.get(&key)?) < 0.0 {
+                return Some(false);
+            }
+        }
+        Some(true)
     }
 
     /// Triangles whose bounding boxes meet the box [lo − pad, hi + pad].
@@ -369,28 +508,40 @@ impl CutSurface for TriangleSurface {
     fn behind_front(&self, x: &Point3<f64>, front: &[[Point3<f64>; 2]]) -> bool {
         let (t, _, feature) = self.closest(x);
         let tri = self.triangles[t];
-        let on_front = |a: Point3<f64>, b: Point3<f64>| {
-            front
-                .iter()
-                .any(|s| (s[0] == a && s[1] == b) || (s[0] == b && s[1] == a))
-        };
-        match feature {
+        // The boundary edges the closest feature holds (none: behind).
+        let at: Vec<(usize, usize)> = match feature {
             Feature::Face => return true,
             Feature::Edge(k) => {
-                let (i, j) = (tri[k], tri[(k + 1) % 3]);
-                if !self.edges[&edge_key(i, j)].1 || !on_front(self.vertices[i], self.vertices[j]) {
+                let key = edge_key(tri[k], tri[(k + 1) % 3]);
+                if !self.edges[&key].1 {
                     return true;
                 }
+                vec![key]
             }
-            Feature::Vertex(k) => {
-                let v = self.vertices[tri[k]];
-                if !self.vertex_on_boundary[tri[k]] || !front.iter().any(|s| s[0] == v || s[1] == v)
-                {
-                    return true;
-                }
+            Feature::Vertex(k) => match self.boundary_at.get(&tri[k]) {
+                Some(edges) => edges.clone(),
+                None => return true,
+            },
+        };
+        // Closest to the boundary: behind unless past the line (in its
+        // triangle's plane) of a front segment on the sides there or on
+        // the sides meeting them. The surface runs on across its other
+        // boundary (outside the body), so past it is behind, unless also
+        // past a front side meeting it; a side holding front is front along
+        // its whole line, its pieces outside the body too. That is the
+        // planar patch's rule (inside the half-planes of its front edges),
+        // where the closest edge's kind alone made ψ change sign inside the
+        // body: a skewed patch has a non-front edge's strip reach back past
+        // a front edge's line, and a side written as several edges has
+        // pieces outside the body that are not front.
+        let mut near: Vec<usize> = Vec::new();
+        for key in &at {
+            if let Some(&side) = self.side_of.get(key) {
+                near.extend(&self.side_neighbours[side]);
             }
         }
-        self.contains(x, 0.0)
+        self.inside_front_sides(x, front, &near)
+            .unwrap_or_else(|| self.contains(x, 0.0))
     }
 
     fn boundary(&self) -> Vec<[Point3<f64>; 2]> {

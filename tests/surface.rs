@@ -246,6 +246,71 @@ fn an_oblique_patch_in_an_ascii_stl_equals_the_patch_to_round_off() {
     assert!(diff <= 1e-12, "{diff:e}");
 }
 
+#[test]
+fn a_skewed_patch_with_front_corners_in_the_body_as_triangles_equals_the_patch() {
+    // A random scene's patch (u, v at 67°): corners o and o + u inside the
+    // beam, the others outside; its front is e0 = (o, o + u), e1 and
+    // e3 = (o + v, o), which meet e2 = (o + u + v, o + v) outside the
+    // body. Nodes past e3's line that are nearer e2 (whose strip reaches
+    // back across e3's line, the patch being skewed) were behind the front
+    // in the triangles (ψ < 0) and ahead of it in the patch: the probes
+    // differed by 2.8e-3 of the largest. Written as 3 × 3 quads, the
+    // pieces of e3 outside the body are boundary edges that are not front,
+    // and nodes nearest them were behind the front too (1.3e-3 of the
+    // largest probe in another such scene).
+    let mesh = xfem_cut::study::fixtures::beam_mesh([2, 4, 6], false);
+    let p = PlanarPatch {
+        origin: Point3::new(
+            0.005338360837679819,
+            0.023044799532014146,
+            0.12898782122136915,
+        ),
+        u: Vector3::new(
+            0.01023930171248691,
+            0.033078776314224706,
+            -0.004551665043134235,
+        ),
+        v: Vector3::new(
+            -0.016146033099991252,
+            0.02718228259418669,
+            -0.029516099490049453,
+        ),
+    };
+    let a = setup_cut(&mesh, &[CutInput::tip(&p, DEFAULT_SNAP, None)]).unwrap();
+    assert!(a.n_tip > 0, "the front must lie inside elements");
+    let solve_with = |setup| {
+        let m = model(
+            &mesh,
+            Some(setup),
+            Formulation::Linear,
+            Vector3::new(-9.227, 1.825, 2.789),
+            None,
+            false,
+        )
+        .unwrap();
+        let d = solve(&m);
+        (m, d)
+    };
+    let (m_ref, d_ref) = solve_with(a.clone());
+    for n in [1, 3] {
+        let (v, tris) = patch_triangles(&p, n);
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("skewed.stl");
+        std::fs::write(&file, ascii_stl(&v, &tris)).unwrap();
+        let s = TriangleSurface::read(&file).unwrap();
+        let b = setup_cut(&mesh, &[CutInput::tip(&s, DEFAULT_SNAP, None)]).unwrap();
+        // ψ at every node: the same magnitude and sign, to round-off of the
+        // body's size (ψ = ∓√(d² − φ²) cancels near the plane's line).
+        let flipped = (a.front_level.iter().zip(&b.front_level))
+            .filter(|(x, y)| (*x - *y).abs() > 1e-12 * 0.21)
+            .count();
+        assert_eq!(flipped, 0, "{n} × {n} quads: nodes whose ψ differs");
+        let (m, d) = solve_with(b);
+        let diff = relative_difference(&m_ref, &d_ref, &m, &d);
+        assert!(diff <= 1e-12, "{n} × {n} quads: {diff:e}");
+    }
+}
+
 /// An open cylindrical arc: the circle of radius 1.5 about (x, z) = (0, 2.6),
 /// angles −0.3…0.45 rad, y ∈ [−0.5, 1.5]: it enters through x = 0 at
 /// z ≈ 1.1 and ends inside the bar at x ≈ 0.65, z ≈ 1.25.
