@@ -7,7 +7,9 @@
 //! the body. (Random scenes found all three: a dense group's rotated
 //! positions were measured from the origin, STL vertices were read in single
 //! precision, and the feet of nodes past a patch edge outside the body were
-//! taken as ahead of the front.)
+//! taken as ahead of the front; with a skewed patch, small enough for its
+//! front to turn corners inside the body, nodes past a front side taken as
+//! behind it when a non-front edge was nearer.)
 
 mod common;
 use common::largest_difference;
@@ -278,6 +280,134 @@ fn random_oblique_cuts_solve_and_move_and_read_as_stl_unchanged() {
             d_tight <= 1e-10,
             "{k} {}: ending just outside {d_tight:e}",
             scene.label()
+        );
+    }
+}
+
+/// A random small, skewed patch in the seed's beam (corners inside and
+/// outside the body, its front with corners inside elements), as TOML text
+/// with the cut given by `cut`.
+fn skewed_scene(rng: &mut Lcg, k: usize, cut: &str) -> String {
+    let tet10 = k % 3 == 2;
+    let div = [[2, 4, 6], [2, 3, 8], [3, 4, 7], [3, 5, 9]][k % 4];
+    let formulation = if k % 2 == 1 { "corotational" } else { "linear" };
+    let front = ["", "front = \"extend\"\n", "tip_radius = 0.008\n"][(k / 2) % 3];
+    let g = rng.direction() * 9.81;
+    let young = [1e3, 3e5, 3e6][k % 3];
+    let probes: Vec<String> = (0..6)
+        .map(|_| {
+            format!(
+                "[{:e}, {:e}, {:e}]",
+                rng.range(0.0, 0.03),
+                rng.range(0.0, 0.06),
+                rng.range(0.0, 0.2)
+            )
+        })
+        .collect();
+    format!(
+        "name = \"skewed\"\n[body]\nbox = [[0.0, 0.0, 0.0], [0.03, 0.06, 0.2]]\nlevels = [[{}, {}, {}]]\nelement = \"{}\"\n[material]\nyoung = {young:e}\npoisson = 0.3\ndensity = 1070.0\n[[cut]]\n{cut}{front}[[fix]]\nmin = [-inf, -inf, 0.0]\nmax = [inf, inf, 0.0]\n[gravity]\nacceleration = [{:e}, {:e}, {:e}]\n[analysis]\ntype = \"static\"\nformulation = \"{formulation}\"\n[[probe]]\npoints = [{}]\n",
+        div[0],
+        div[1],
+        div[2],
+        if tet10 { "tet10" } else { "tet4" },
+        g.x,
+        g.y,
+        g.z,
+        probes.join(", ")
+    )
+}
+
+#[test]
+fn random_skewed_patches_read_as_triangles_swept_by_paths_or_flipped_unchanged() {
+    // Small patches at any angle (u, v not orthogonal), so their front has
+    // corners inside the body and sides leaving it: the same cut given as
+    // the patch, its STL (2 triangles and 3 × 3 quads), a static blade on
+    // a straight path with a keyframe inside (a strip of triangles), and
+    // the patch from its other corner (u → −u: the normal flips, the
+    // probes off the plane stay). Before fa963cd 10 of 29 such scenes
+    // differed by up to 1.8e-3 of the largest probe (feet of nodes past a
+    // front side's line taken as behind the front).
+    let dir = tempfile::tempdir().unwrap();
+    let mut rng = Lcg(20261204);
+    let mut solved = 0;
+    let mut k = 0;
+    while solved < 12 {
+        k += 1;
+        assert!(k < 200, "too few random patches cut the beam");
+        let o = Point3::new(
+            rng.range(-0.005, 0.02),
+            rng.range(-0.01, 0.03),
+            rng.range(0.05, 0.15),
+        );
+        let u = rng.direction() * rng.range(0.01, 0.05);
+        let v = rng.direction() * rng.range(0.01, 0.06);
+        let state = rng.0;
+        let at = |p: Point3<f64>| format!("[{:e}, {:e}, {:e}]", p.x, p.y, p.z);
+        let vec = |v: Vector3<f64>| format!("[{:e}, {:e}, {:e}]", v.x, v.y, v.z);
+        // Every variant draws the same scene (materials, loads, probes).
+        let scene_with = |cut: &str| {
+            let mut r = Lcg(state);
+            skewed_scene(&mut r, k, cut)
+        };
+        let patch = scene_with(&format!(
+            "origin = {}\nu = {}\nv = {}\n",
+            at(o),
+            vec(u),
+            vec(v)
+        ));
+        let parsed = Scene::parse(&patch, &dir.path().join("skewed.toml")).unwrap();
+        let Ok(result) = solve_scene(&parsed, 0, None, false) else {
+            continue; // a patch that cuts nothing (outside the body, too small)
+        };
+        let base = probe_values(&parsed, &result).unwrap();
+        solved += 1;
+        for n in [1, 3] {
+            let mut points = Vec::new();
+            for j in 0..=n {
+                for i in 0..=n {
+                    points.push(o + u * (i as f64 / n as f64) + v * (j as f64 / n as f64));
+                }
+            }
+            let id = |i: usize, j: usize| j * (n + 1) + i;
+            let mut tris = Vec::new();
+            for j in 0..n {
+                for i in 0..n {
+                    tris.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+                    tris.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+                }
+            }
+            let file = format!("skewed{n}.stl");
+            std::fs::write(dir.path().join(&file), ascii_stl(&points, &tris)).unwrap();
+            let d = largest_difference(
+                &base,
+                &probes(&scene_with(&format!("surface = \"{file}\"\n")), dir.path()),
+            );
+            assert!(d <= 1e-10, "scene {k}, {n} × {n} quads: {d:e}\n{patch}");
+        }
+        let (b, m) = (o + u, o + v * 0.37);
+        let path = format!(
+            "blade = [{}, {}]\npath = [[{}, {}], [{}, {}], [{}, {}]]\ntimes = [0.0, 0.4, 1.0]\n",
+            at(o),
+            at(b),
+            at(o),
+            at(b),
+            at(m),
+            at(m + u),
+            at(o + v),
+            at(b + v)
+        );
+        let d = largest_difference(&base, &probes(&scene_with(&path), dir.path()));
+        assert!(d <= 1e-10, "scene {k}, a path's strip: {d:e}\n{patch}");
+        let flipped = scene_with(&format!(
+            "origin = {}\nu = {}\nv = {}\n",
+            at(o + u),
+            vec(-u),
+            vec(v)
+        ));
+        let d = largest_difference(&base, &probes(&flipped, dir.path()));
+        assert!(
+            d <= 1e-10,
+            "scene {k}, from the other corner: {d:e}\n{patch}"
         );
     }
 }
