@@ -379,7 +379,8 @@ fn solve_progressive(
 }
 
 /// Displacement at reference point `x`: located in the mesh; in a cut element
-/// the side is the sign of the level set there (on the cut: the + side). A
+/// the side is the sign of the level set there (on the cut, to round-off:
+/// the + side). A
 /// point on a cut that runs along element faces is looked up in an element of
 /// that side.
 pub fn evaluate_at(
@@ -390,6 +391,11 @@ pub fn evaluate_at(
 ) -> Option<Vector3<f64>> {
     evaluate_on_side(model, locator, d, x, None)
 }
+
+/// A point whose interpolated level set is within this fraction of its
+/// element's size plus its largest coordinate is on the cut surface
+/// ([`evaluate_on_side`]).
+const ON_SURFACE: f64 = 1e-12;
 
 /// As [`evaluate_at`], on the given side of the cut (+1 or −1) instead of
 /// the sign of the interpolated level set: a point on the cut plane reads
@@ -415,7 +421,16 @@ pub fn evaluate_on_side(
             .map(|(&i, l)| cut.phi[i] * l)
             .sum()
     };
-    let side: i8 = side.unwrap_or(if level(e, &bary) >= 0.0 { 1 } else { -1 });
+    // On the surface (within round-off of the point's coordinates and the
+    // element's size): the + side. A point written as o + s u + t v of an
+    // oblique patch lands within ~1e-18 m of it on either side, and read
+    // the − side about one time in three.
+    let on_surface = ON_SURFACE * (model.mesh.element_size(e) + x.coords.amax());
+    let side: i8 = side.unwrap_or(if level(e, &bary) >= -on_surface {
+        1
+    } else {
+        -1
+    });
     // Whether element e's field is the one of `side` (a cut element holds both).
     let serves = |e: usize| match &cut.elements[e] {
         crate::cut::ElementCut::Cut { .. } => true,
