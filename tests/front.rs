@@ -100,7 +100,18 @@ fn solve_blended(
     radius: Option<f64>,
     blending: Blending,
 ) -> (Run, Model, Vec<f64>) {
-    let fr = Front::new();
+    solve_about(&Front::new(), div, kind, jitter, front, radius, blending)
+}
+
+fn solve_about(
+    fr: &Front,
+    div: usize,
+    kind: ElementKind,
+    jitter: f64,
+    front: FrontMode,
+    radius: Option<f64>,
+    blending: Blending,
+) -> (Run, Model, Vec<f64>) {
     let mesh = mesh(div, kind, jitter);
     let patch = fr.patch();
     let cut = setup_cut(
@@ -114,7 +125,7 @@ fn solve_blended(
         }],
     )
     .unwrap();
-    let fixed = boundary_values(&fr, &mesh, &cut);
+    let fixed = boundary_values(fr, &mesh, &cut);
     let (n_tip, n_heaviside) = (cut.n_tip(), cut.n_heaviside());
     let model = Model::build(ModelInput {
         mesh,
@@ -1287,5 +1298,81 @@ points = [{points}]
         println!("{element} {front}: mirror error {worst:.1e} (relative)");
         assert!(scale > 1e-5, "{scale:e}");
         assert!(worst <= bound, "{element} {front}: {worst:e}");
+    }
+}
+
+#[test]
+fn fronts_at_any_angle_converge_alike() {
+    // The exact field about fronts of other orientations: random ones and
+    // ones along the structured mesh's edges and faces (a front in a node
+    // plane, along an edge direction, in the plane of the hexes' diagonal
+    // faces). Geometric tip enrichment, Tet4, 12 and 20 divisions: orders
+    // measured 1.52 … 1.80 (L2) and 0.75 … 0.88 (energy), the random
+    // orientations lowest, still short of their asymptotes (2 and 1; the
+    // first orientation's 0.87 here is 0.85+ at 16 → 24 in
+    // `geometric_tip_enrichment_converges_at_the_optimal_rate_tet4`). The
+    // bounds 1.4 and 0.7 catch an orientation whose tip treatment fails:
+    // the topological tip gave 0.71 … 0.93 and 0.44 … 0.53 on the same
+    // meshes, `extend` 0.40 … 1.48 and 0.40 … 0.62.
+    let mut orientations = vec![
+        (
+            "along z, plane y",
+            Vector3::new(0.0, 1.0, 0.0),
+            Vector3::new(0.0, 0.0, 1.0),
+        ),
+        (
+            "along a face diagonal",
+            Vector3::new(0.0, 1.0, 0.0),
+            Vector3::new(1.0, 0.0, 1.0),
+        ),
+        (
+            "plane x = y",
+            Vector3::new(1.0, -1.0, 0.0),
+            Vector3::new(0.0, 0.0, 1.0),
+        ),
+        (
+            "along the body diagonal",
+            Vector3::new(1.0, -1.0, 0.0),
+            Vector3::new(1.0, 1.0, 1.0),
+        ),
+    ];
+    let mut seed = 12345u64;
+    let mut unit = || {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    };
+    for _ in 0..4 {
+        let n = Vector3::new(unit(), unit(), unit());
+        let t = Vector3::new(unit(), unit(), unit());
+        orientations.push(("random", n, t));
+    }
+    for (name, n, t) in orientations {
+        let fr = Front::oriented(Point3::new(0.513, 0.479, 0.507), n, t);
+        let runs: Vec<Run> = [12, 20]
+            .iter()
+            .map(|&d| {
+                solve_about(
+                    &fr,
+                    d,
+                    ElementKind::Tet4,
+                    0.0,
+                    FrontMode::Tip,
+                    Some(0.2),
+                    Blending::None,
+                )
+                .0
+            })
+            .collect();
+        let lev = (20.0f64 / 12.0).ln();
+        let l2 = (runs[0].l2 / runs[1].l2).ln() / lev;
+        let en = (runs[0].energy / runs[1].energy).ln() / lev;
+        println!(
+            "{name:24} n {:.2?} t {:.2?}: L2 {:.3e} → {:.3e} (order {l2:.2}), energy {:.3e} → {:.3e} (order {en:.2})",
+            fr.n, fr.t, runs[0].l2, runs[1].l2, runs[0].energy, runs[1].energy
+        );
+        assert!(l2 >= 1.4, "{name}: L2 order {l2}");
+        assert!(en >= 0.7, "{name}: energy order {en}");
     }
 }

@@ -327,10 +327,18 @@ impl Default for WilliamsFront {
 impl WilliamsFront {
     /// K_I = 1, K_II = 0.7, K_III = 0.5 about a front through (0.513, 0.479, 0.507).
     pub fn new() -> WilliamsFront {
-        let c = Point3::new(0.513, 0.479, 0.507);
-        let n = Vector3::new(0.15, 1.0, 0.2).normalize();
-        let t0 = Vector3::new(0.1, 0.05, 1.0);
-        let t = (t0 - n * n.dot(&t0)).normalize();
+        WilliamsFront::oriented(
+            Point3::new(0.513, 0.479, 0.507),
+            Vector3::new(0.15, 1.0, 0.2),
+            Vector3::new(0.1, 0.05, 1.0),
+        )
+    }
+
+    /// The same field about the front through `c` in the plane of normal
+    /// `normal`, along `along` projected into that plane.
+    pub fn oriented(c: Point3<f64>, normal: Vector3<f64>, along: Vector3<f64>) -> WilliamsFront {
+        let n = normal.normalize();
+        let t = (along - n * n.dot(&along)).normalize();
         let m = n.cross(&t);
         let mu = Lame::from(MATERIAL).mu;
         let kappa = 3.0 - 4.0 * MATERIAL.poisson;
