@@ -49,7 +49,7 @@ pub enum SceneError {
     },
     #[error("{file}: mesh `{mesh}` is a Tet10 mesh but element = \"tet4\"")]
     MeshKind { file: String, mesh: String },
-    #[error("{file}: level {level} does not exist (the case has {count} levels: 0..{})", count.saturating_sub(1))]
+    #[error("{file}: level {level} does not exist (the case has {count} level{}: 0..={})", if *count == 1 { "" } else { "s" }, count.saturating_sub(1))]
     Level {
         file: String,
         level: usize,
