@@ -75,6 +75,11 @@ pub trait CutSurface: Send + Sync {
         !others.is_empty()
             && crate::front::front_distance(x, &others) < crate::front::front_distance(x, front)
     }
+    /// `level_set` and `behind_front` at once (a triangle surface finds the
+    /// closest point once for both).
+    fn level_set_behind(&self, x: &Point3<f64>, front: &[[Point3<f64>; 2]]) -> (f64, bool) {
+        (self.level_set(x), self.behind_front(x, front))
+    }
 }
 
 impl PlanarPatch {
@@ -567,11 +572,6 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
             star[i].push(e);
         }
     }
-    let mut phi: Vec<f64> = mesh.nodes.iter().map(|p| surface.level_set(p)).collect();
-    if phi.iter().any(|p| !p.is_finite()) {
-        return Err(CutError::Degenerate(index));
-    }
-    // ψ from the unsnapped φ, the front segments and `contains` (tip mode only).
     let boundary = surface.boundary();
     let front = match input.front {
         FrontMode::Extend => None,
@@ -579,20 +579,28 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
     };
     // The front carried on outside the body: ψ and `tip_radius` measure to it.
     let front_reach = front.as_deref().map(|f| front::extend_front_exits(mesh, f));
-    let mut front_level: Vec<f64> = match &front {
+    // φ, and ψ from the unsnapped φ, the front segments and which side of
+    // the front the node's foot is on (tip mode only).
+    let (mut phi, mut front_level): (Vec<f64>, Vec<f64>) = match &front {
         Some(front) => {
             let segments = front_reach.as_deref().unwrap_or_default();
             mesh.nodes
                 .iter()
-                .zip(&phi)
-                .map(|(x, &f)| {
+                .map(|x| {
+                    let (f, behind) = surface.level_set_behind(x, front);
                     let d = front::front_distance(x, segments);
-                    front::front_level_set(f, d, surface.behind_front(x, front))
+                    (f, front::front_level_set(f, d, behind))
                 })
-                .collect()
+                .unzip()
         }
-        None => Vec::new(),
+        None => (
+            mesh.nodes.iter().map(|p| surface.level_set(p)).collect(),
+            Vec::new(),
+        ),
     };
+    if phi.iter().any(|p| !p.is_finite()) {
+        return Err(CutError::Degenerate(index));
+    }
     // The sides of the nodes that snapping puts on the surface; within
     // round-off of it (a patch and the same patch as triangles differ
     // there): the + side, as on it.

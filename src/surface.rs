@@ -42,6 +42,10 @@ pub enum SurfaceError {
     Format { file: PathBuf },
 }
 
+/// A point's closest point on a surface: its triangle, the point, where on
+/// the triangle.
+type Closest = (usize, Point3<f64>, Feature);
+
 /// Where the closest point lies on a triangle.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Feature {
@@ -388,7 +392,7 @@ impl TriangleSurface {
     }
 
     /// The closest point on the surface, its triangle and feature.
-    fn closest(&self, x: &Point3<f64>) -> (usize, Point3<f64>, Feature) {
+    fn closest(&self, x: &Point3<f64>) -> Closest {
         let tri = self
             .tree
             .nearest_neighbor(&[x.x, x.y, x.z])
@@ -423,19 +427,9 @@ impl TriangleSurface {
         Some(true)
     }
 
-    /// Triangles whose bounding boxes meet the box [lo − pad, hi + pad].
-    fn near(&self, lo: Point3<f64>, hi: Point3<f64>, pad: f64) -> impl Iterator<Item = &Tri> + '_ {
-        let env = AABB::from_corners(
-            [lo.x - pad, lo.y - pad, lo.z - pad],
-            [hi.x + pad, hi.y + pad, hi.z + pad],
-        );
-        self.tree.locate_in_envelope_intersecting(&env)
-    }
-}
-
-impl CutSurface for TriangleSurface {
-    fn level_set(&self, x: &Point3<f64>) -> f64 {
-        let (t, c, feature) = self.closest(x);
+    /// φ at x from its closest point on the surface: the signed distance,
+    /// past the boundary the tangent-plane extension across it.
+    fn level_set_from(&self, x: &Point3<f64>, (t, c, feature): Closest) -> f64 {
         let tri = self.triangles[t];
         let (normal, boundary) = match feature {
             Feature::Face => (self.normals[t], false),
@@ -455,6 +449,73 @@ impl CutSurface for TriangleSurface {
                 -d
             }
         }
+    }
+
+    /// Whether x is behind the front, from its closest point on the surface.
+    fn behind_front_from(
+        &self,
+        x: &Point3<f64>,
+        front: &[[Point3<f64>; 2]],
+        (t, _, feature): Closest,
+    ) -> bool {
+        let tri = self.triangles[t];
+        // The boundary edges the closest feature holds (none: behind).
+        let at: Vec<(usize, usize)> = match feature {
+            Feature::Face => return true,
+            Feature::Edge(k) => {
+                let key = edge_key(tri[k], tri[(k + 1) % 3]);
+                if !self.edges[&key].1 {
+                    return true;
+                }
+                vec![key]
+            }
+            Feature::Vertex(k) => match self.boundary_at.get(&tri[k]) {
+                Some(edges) => edges.clone(),
+                None => return true,
+            },
+        };
+        // Closest to the boundary: behind unless past the line (in its
+        // triangle's plane) of a front segment on the sides there or on
+        // the sides meeting them. The surface runs on across its other
+        // boundary (outside the body), so past it is behind, unless also
+        // past a front side meeting it; a side holding front is front along
+        // its whole line, its pieces outside the body too. That is the
+        // planar patch's rule (inside the half-planes of its front edges),
+        // where the closest edge's kind alone made ψ change sign inside the
+        // body: a skewed patch has a non-front edge's strip reach back past
+        // a front edge's line, and a side written as several edges has
+        // pieces outside the body that are not front.
+        let mut near: Vec<usize> = Vec::new();
+        for key in &at {
+            if let Some(&side) = self.side_of.get(key) {
+                near.extend(&self.side_neighbours[side]);
+            }
+        }
+        self.inside_front_sides(x, front, &near)
+            .unwrap_or_else(|| self.contains(x, 0.0))
+    }
+
+    /// Triangles whose bounding boxes meet the box [lo − pad, hi + pad].
+    fn near(&self, lo: Point3<f64>, hi: Point3<f64>, pad: f64) -> impl Iterator<Item = &Tri> + '_ {
+        let env = AABB::from_corners(
+            [lo.x - pad, lo.y - pad, lo.z - pad],
+            [hi.x + pad, hi.y + pad, hi.z + pad],
+        );
+        self.tree.locate_in_envelope_intersecting(&env)
+    }
+}
+
+impl CutSurface for TriangleSurface {
+    fn level_set(&self, x: &Point3<f64>) -> f64 {
+        self.level_set_from(x, self.closest(x))
+    }
+
+    fn level_set_behind(&self, x: &Point3<f64>, front: &[[Point3<f64>; 2]]) -> (f64, bool) {
+        let closest = self.closest(x);
+        (
+            self.level_set_from(x, closest),
+            self.behind_front_from(x, front, closest),
+        )
     }
 
     fn overlaps(&self, poly: &[Point3<f64>], reach: f64) -> bool {
@@ -502,46 +563,11 @@ impl CutSurface for TriangleSurface {
         })
     }
 
-    /// Behind the front where the closest point is inside the surface, on a
-    /// boundary edge that is not front or on a boundary vertex that ends no
-    /// front segment; by `contains` else.
+    /// Behind the front where the closest point is inside the surface or on
+    /// an edge or vertex inside it; nearest its boundary, unless past the
+    /// line of a front side there or beside it (see `behind_front_from`).
     fn behind_front(&self, x: &Point3<f64>, front: &[[Point3<f64>; 2]]) -> bool {
-        let (t, _, feature) = self.closest(x);
-        let tri = self.triangles[t];
-        // The boundary edges the closest feature holds (none: behind).
-        let at: Vec<(usize, usize)> = match feature {
-            Feature::Face => return true,
-            Feature::Edge(k) => {
-                let key = edge_key(tri[k], tri[(k + 1) % 3]);
-                if !self.edges[&key].1 {
-                    return true;
-                }
-                vec![key]
-            }
-            Feature::Vertex(k) => match self.boundary_at.get(&tri[k]) {
-                Some(edges) => edges.clone(),
-                None => return true,
-            },
-        };
-        // Closest to the boundary: behind unless past the line (in its
-        // triangle's plane) of a front segment on the sides there or on
-        // the sides meeting them. The surface runs on across its other
-        // boundary (outside the body), so past it is behind, unless also
-        // past a front side meeting it; a side holding front is front along
-        // its whole line, its pieces outside the body too. That is the
-        // planar patch's rule (inside the half-planes of its front edges),
-        // where the closest edge's kind alone made ψ change sign inside the
-        // body: a skewed patch has a non-front edge's strip reach back past
-        // a front edge's line, and a side written as several edges has
-        // pieces outside the body that are not front.
-        let mut near: Vec<usize> = Vec::new();
-        for key in &at {
-            if let Some(&side) = self.side_of.get(key) {
-                near.extend(&self.side_neighbours[side]);
-            }
-        }
-        self.inside_front_sides(x, front, &near)
-            .unwrap_or_else(|| self.contains(x, 0.0))
+        self.behind_front_from(x, front, self.closest(x))
     }
 
     fn boundary(&self) -> Vec<[Point3<f64>; 2]> {
