@@ -1315,10 +1315,11 @@ fn fronts_at_any_angle_converge_alike() {
     // `geometric_tip_enrichment_converges_at_the_optimal_rate_tet4`). The
     // bounds 1.4 and 0.7 catch an orientation whose tip treatment fails:
     // the topological tip gave 0.71 … 0.93 and 0.44 … 0.53 on the same
-    // meshes, `extend` 0.40 … 1.48 and 0.40 … 0.62 (unjittered). Tet10, 6
+    // meshes, `extend` 0.40 … 1.48 and 0.40 … 0.62 (both unjittered). Tet10, 6
     // and 9 divisions: 2.43 … 3.22 and 1.45 … 2.13 (asymptotes 3 and 2; bounds
     // 2.2 and 1.3). At 4 → 7 the plane x = y, parallel to the hexes'
-    // diagonal faces, was still at 1.55 and 0.68 (the others ≥ 2.25, 1.01).
+    // diagonal faces, was still at 1.55 and 0.68 (the two mesh-aligned
+    // orientations before it: ≥ 2.25 and ≥ 1.01).
     // (name, normal, along, node jitter: the random orientations on meshes
     // whose nodes are moved by up to 0.2 h, as unstructured ones are)
     let mut orientations = vec![
