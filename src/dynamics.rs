@@ -81,6 +81,10 @@ pub const DEFAULT_LAGGED: LinearSolver = LinearSolver::Lagged {
 /// tangent.
 const NEWTON_TAIL: usize = 3;
 
+/// Halvings of a corotational time step whose Newton iterations fail before
+/// the step gives up ([`Newmark::step`]): sub-steps down to 1/16 of it.
+pub const MAX_STEP_HALVINGS: usize = 4;
+
 /// How a linear scene's first step after a cut event solves its grown K_eff
 /// (`blade::run_dynamic` hands the integrator the factor of the previous one).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -273,16 +277,21 @@ pub struct Energies {
 /// Per-step counters.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct StepReport {
-    /// Newton iterations (linear solves) of the step.
+    /// Newton iterations (linear solves) of the step (with sub-steps: theirs
+    /// and those of the failed attempts before them).
     pub iterations: usize,
     /// Final relative residual.
     pub residual: f64,
-    /// Numeric factorisations of the step.
+    /// Numeric factorisations of the step (failed attempts included).
     pub factorisations: usize,
     /// CG iterations of the step (PCG mode).
     pub cg_iterations: usize,
     /// Iterations where the exact tangent was not positive definite and R K Rᵀ was used.
     pub fallbacks: usize,
+    /// Sub-steps beyond one: a corotational step whose Newton iterations
+    /// failed was taken again as two halves (each halved again where it
+    /// failed, down to 1/2^[`MAX_STEP_HALVINGS`] of the step).
+    pub substeps: usize,
 }
 
 /// Per-step figures of a run, collected step by step (what `run` reports:
@@ -294,6 +303,7 @@ pub struct StepStats {
     cg: usize,
     factorisations: usize,
     fallbacks: usize,
+    substeps: usize,
 }
 
 /// The summary of a [`StepStats`].
@@ -308,6 +318,8 @@ pub struct StepSummary {
     pub factorisations_per_step: f64,
     /// Iterations that fell back from the exact tangent to R K Rᵀ.
     pub fallbacks: usize,
+    /// Sub-steps taken beyond one a step, over all steps ([`StepReport::substeps`]).
+    pub substeps: usize,
 }
 
 impl StepStats {
@@ -327,6 +339,7 @@ impl StepStats {
         self.cg += report.cg_iterations;
         self.factorisations += report.factorisations;
         self.fallbacks += report.fallbacks;
+        self.substeps += report.substeps;
     }
 
     /// Newton iterations of each recorded step.
@@ -359,6 +372,7 @@ impl StepStats {
             cg_per_step: per_step(self.cg),
             factorisations_per_step: per_step(self.factorisations),
             fallbacks: self.fallbacks,
+            substeps: self.substeps,
         }
     }
 }
@@ -378,6 +392,13 @@ impl std::fmt::Display for StepSummary {
         )?;
         if self.fallbacks > 0 {
             write!(f, ", {} R K Rᵀ fallbacks", self.fallbacks)?;
+        }
+        if self.substeps > 0 {
+            write!(
+                f,
+                ", {} sub-steps where Newton failed on a whole step",
+                self.substeps
+            )?;
         }
         Ok(())
     }
@@ -626,6 +647,8 @@ pub struct Newmark<'m> {
     /// Strain energy of the current state.
     pub strain_energy: f64,
     last_report: Option<StepReport>,
+    /// The state before a step, per halving depth (see [`Newmark::step`]).
+    saved: Vec<State>,
     /// Linear formulation: the assembled stiffness the step's internal
     /// forces come from (no element loop per step).
     linear: Option<LinearForces>,
@@ -869,6 +892,7 @@ impl<'m> Newmark<'m> {
             },
             strain_energy: 0.0,
             last_report: None,
+            saved: Vec::new(),
             linear: None,
         })
     }
@@ -1147,11 +1171,95 @@ impl<'m> Newmark<'m> {
         }
     }
 
-    /// Advances one time step.
+    /// Advances one time step. A corotational step whose Newton iterations
+    /// fail (or leave the finite numbers) is taken again from the state
+    /// before it as two steps of half the size, each halved again where it
+    /// fails, down to 1/2^[`MAX_STEP_HALVINGS`] of the step. The whole
+    /// step's failure is returned when that fails too, or when the halves
+    /// end with inverted elements (a column collapsing onto its clamp is
+    /// reported, not carried on inverted). (A top face moved by 4 % of the
+    /// beam in one step, ν = 0.49, Tet10: Newton failed at the second step;
+    /// in halves it runs.)
     pub fn step(&mut self) -> Result<StepReport, DynamicError> {
-        let report = self.step_inner()?;
+        let report = self.step_halving(0)?;
         self.last_report = Some(report);
         Ok(report)
+    }
+
+    fn step_halving(&mut self, depth: usize) -> Result<StepReport, DynamicError> {
+        let can_halve = self.model.formulation != Formulation::Linear
+            && self.opts.max_iterations > 1
+            && depth < MAX_STEP_HALVINGS;
+        if !can_halve {
+            return self.step_inner();
+        }
+        self.save_state(depth);
+        let (factor_start, cg_start) = (self.chol.factorisations, self.pcg.iterations);
+        let failure = match self.step_inner() {
+            Err(e @ (DynamicError::NoConvergence { .. } | DynamicError::NotFinite(_))) => e,
+            other => return other,
+        };
+        // The failed attempt's iterations count (NoConvergence: all it may take).
+        let wasted = match failure {
+            DynamicError::NoConvergence { .. } => self.opts.max_iterations,
+            _ => 0,
+        };
+        self.restore_state(depth);
+        let dt = self.opts.dt;
+        self.opts.dt = 0.5 * dt;
+        // K_eff holds c₀ M = M / (β Δt²): a factor of another Δt is stale.
+        self.factored = false;
+        let halves = self.step_halving(depth + 1).and_then(|a| {
+            let b = self.step_halving(depth + 1)?;
+            Ok(StepReport {
+                iterations: wasted + a.iterations + b.iterations,
+                residual: b.residual,
+                factorisations: self.chol.factorisations - factor_start,
+                cg_iterations: self.pcg.iterations - cg_start,
+                fallbacks: a.fallbacks + b.fallbacks,
+                substeps: a.substeps + b.substeps + 1,
+            })
+        });
+        self.opts.dt = dt;
+        self.factored = false;
+        // Halves that end with inverted elements (a body collapsing, not a
+        // step too large) rescue nothing: the whole step's failure stands.
+        match halves {
+            Ok(report) if crate::assembly::inverted_groups(self.model, &self.state.d) == 0 => {
+                Ok(report)
+            }
+            _ => {
+                self.restore_state(depth);
+                Err(failure)
+            }
+        }
+    }
+
+    /// Keeps the state at halving depth `depth` (allocating only when the
+    /// DOFs grew: after the first step a step allocates nothing).
+    fn save_state(&mut self, depth: usize) {
+        while self.saved.len() <= depth {
+            self.saved.push(self.state.clone());
+        }
+        let (s, k) = (&self.state, &mut self.saved[depth]);
+        k.time = s.time;
+        for (to, from) in [(&mut k.d, &s.d), (&mut k.v, &s.v), (&mut k.a, &s.a)] {
+            to.clear();
+            to.extend_from_slice(from);
+        }
+        k.rotations.0.clear();
+        k.rotations.0.extend_from_slice(&s.rotations.0);
+    }
+
+    fn restore_state(&mut self, depth: usize) {
+        let (k, s) = (&self.saved[depth], &mut self.state);
+        s.time = k.time;
+        for (to, from) in [(&mut s.d, &k.d), (&mut s.v, &k.v), (&mut s.a, &k.a)] {
+            to.clear();
+            to.extend_from_slice(from);
+        }
+        s.rotations.0.clear();
+        s.rotations.0.extend_from_slice(&k.rotations.0);
     }
 
     /// The counters of the last step taken, if any.
