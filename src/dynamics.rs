@@ -81,6 +81,21 @@ pub const DEFAULT_LAGGED: LinearSolver = LinearSolver::Lagged {
 /// tangent.
 const NEWTON_TAIL: usize = 3;
 
+/// Copies `from` into `to`, reusing `to`'s buffers.
+fn copy_state(to: &mut State, from: &State) {
+    to.time = from.time;
+    for (t, f) in [
+        (&mut to.d, &from.d),
+        (&mut to.v, &from.v),
+        (&mut to.a, &from.a),
+    ] {
+        t.clear();
+        t.extend_from_slice(f);
+    }
+    to.rotations.0.clear();
+    to.rotations.0.extend_from_slice(&from.rotations.0);
+}
+
 /// Halvings of a corotational time step whose Newton iterations fail before
 /// the step gives up ([`Newmark::step`]): sub-steps down to 1/16 of it.
 pub const MAX_STEP_HALVINGS: usize = 4;
@@ -1241,25 +1256,11 @@ impl<'m> Newmark<'m> {
         while self.saved.len() <= depth {
             self.saved.push(self.state.clone());
         }
-        let (s, k) = (&self.state, &mut self.saved[depth]);
-        k.time = s.time;
-        for (to, from) in [(&mut k.d, &s.d), (&mut k.v, &s.v), (&mut k.a, &s.a)] {
-            to.clear();
-            to.extend_from_slice(from);
-        }
-        k.rotations.0.clear();
-        k.rotations.0.extend_from_slice(&s.rotations.0);
+        copy_state(&mut self.saved[depth], &self.state);
     }
 
     fn restore_state(&mut self, depth: usize) {
-        let (k, s) = (&self.saved[depth], &mut self.state);
-        s.time = k.time;
-        for (to, from) in [(&mut s.d, &k.d), (&mut s.v, &k.v), (&mut s.a, &k.a)] {
-            to.clear();
-            to.extend_from_slice(from);
-        }
-        s.rotations.0.clear();
-        s.rotations.0.extend_from_slice(&k.rotations.0);
+        copy_state(&mut self.state, &self.saved[depth]);
     }
 
     /// The counters of the last step taken, if any.
