@@ -662,7 +662,7 @@ pub struct Newmark<'m> {
     /// Strain energy of the current state.
     pub strain_energy: f64,
     last_report: Option<StepReport>,
-    /// The state before a step, per halving depth (see [`Newmark::step`]).
+    /// The state before a step that failed, per halving depth (see [`Newmark::step`]).
     saved: Vec<State>,
     /// Linear formulation: the assembled stiffness the step's internal
     /// forces come from (no element loop per step).
@@ -1188,7 +1188,8 @@ impl<'m> Newmark<'m> {
 
     /// Advances one time step. A corotational step whose Newton iterations
     /// fail (or leave the finite numbers) is taken again from the state
-    /// before it as two steps of half the size, each halved again where it
+    /// before it (which a failed step leaves recoverable: nothing is copied
+    /// before a step) as two steps of half the size, each halved again where it
     /// fails, down to 1/2^[`MAX_STEP_HALVINGS`] of the step. The whole
     /// step's failure is returned when that fails too, or when the halves
     /// end with inverted elements (a column collapsing onto its clamp is
@@ -1208,18 +1209,22 @@ impl<'m> Newmark<'m> {
         if !can_halve {
             return self.step_inner();
         }
-        self.save_state(depth);
         let (factor_start, cg_start) = (self.chol.factorisations, self.pcg.iterations);
         let failure = match self.step_inner() {
             Err(e @ (DynamicError::NoConvergence { .. } | DynamicError::NotFinite(_))) => e,
             other => return other,
         };
+        // Nothing is copied before a step: a failed one left t, v and a as
+        // they were and dₙ, Rₙ in `d_old`, `rot_start` (`begin_step`).
+        self.state.d.clear();
+        self.state.d.extend_from_slice(&self.d_old);
+        self.state.rotations.0.copy_from_slice(&self.rot_start.0);
+        self.save_state(depth);
         // The failed attempt's iterations count (NoConvergence: all it may take).
         let wasted = match failure {
             DynamicError::NoConvergence { .. } => self.opts.max_iterations,
             _ => 0,
         };
-        self.restore_state(depth);
         let dt = self.opts.dt;
         self.opts.dt = 0.5 * dt;
         // K_eff holds c₀ M = M / (β Δt²): a factor of another Δt is stale.
@@ -1250,8 +1255,8 @@ impl<'m> Newmark<'m> {
         }
     }
 
-    /// Keeps the state at halving depth `depth` (allocating only when the
-    /// DOFs grew: after the first step a step allocates nothing).
+    /// Keeps the state before the step that failed at halving depth
+    /// `depth`, to go back to if its halves fail too.
     fn save_state(&mut self, depth: usize) {
         while self.saved.len() <= depth {
             self.saved.push(self.state.clone());
@@ -1415,6 +1420,9 @@ impl<'m> Newmark<'m> {
                 break;
             }
         }
+        if d.iter().any(|x| !x.is_finite()) {
+            return Err(DynamicError::NotFinite(step_no));
+        }
         // Kinematics of the final iterate (the loop may stop right after an update).
         self.kinematics(&d);
         std::mem::swap(&mut self.state.v, &mut self.v_new);
@@ -1424,9 +1432,6 @@ impl<'m> Newmark<'m> {
         self.steps_since_factor += 1;
         report.factorisations = self.chol.factorisations - factor_start;
         report.cg_iterations = self.pcg.iterations - cg_start;
-        if self.state.d.iter().any(|x| !x.is_finite()) {
-            return Err(DynamicError::NotFinite(step_no));
-        }
         Ok(report)
     }
 
