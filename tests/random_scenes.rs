@@ -12,7 +12,7 @@
 //! behind it when a non-front edge was nearer.)
 
 mod common;
-use common::largest_difference;
+use common::{largest_difference, patch_triangles};
 use nalgebra::{Point3, Vector3};
 use std::path::Path;
 use xfem_cut::run::{probe_values, solve_scene};
@@ -284,6 +284,21 @@ fn random_oblique_cuts_solve_and_move_and_read_as_stl_unchanged() {
     }
 }
 
+/// `n` random points in the seed's beam, as a TOML list's entries.
+fn beam_points(rng: &mut Lcg, n: usize) -> String {
+    let points: Vec<String> = (0..n)
+        .map(|_| {
+            format!(
+                "[{:e}, {:e}, {:e}]",
+                rng.range(0.0, 0.03),
+                rng.range(0.0, 0.06),
+                rng.range(0.0, 0.2)
+            )
+        })
+        .collect();
+    points.join(", ")
+}
+
 /// A random small, skewed patch in the seed's beam (corners inside and
 /// outside the body, its front with corners inside elements), as TOML text
 /// with the cut given by `cut`.
@@ -294,16 +309,7 @@ fn skewed_scene(rng: &mut Lcg, k: usize, cut: &str) -> String {
     let front = ["", "front = \"extend\"\n", "tip_radius = 0.008\n"][(k / 2) % 3];
     let g = rng.direction() * 9.81;
     let young = [1e3, 3e5, 3e6][k % 3];
-    let probes: Vec<String> = (0..6)
-        .map(|_| {
-            format!(
-                "[{:e}, {:e}, {:e}]",
-                rng.range(0.0, 0.03),
-                rng.range(0.0, 0.06),
-                rng.range(0.0, 0.2)
-            )
-        })
-        .collect();
+    let probes = beam_points(rng, 6);
     format!(
         "name = \"skewed\"\n[body]\nbox = [[0.0, 0.0, 0.0], [0.03, 0.06, 0.2]]\nlevels = [[{}, {}, {}]]\nelement = \"{}\"\n[material]\nyoung = {young:e}\npoisson = 0.3\ndensity = 1070.0\n[[cut]]\n{cut}{front}[[fix]]\nmin = [-inf, -inf, 0.0]\nmax = [inf, inf, 0.0]\n[gravity]\nacceleration = [{:e}, {:e}, {:e}]\n[analysis]\ntype = \"static\"\nformulation = \"{formulation}\"\n[[probe]]\npoints = [{}]\n",
         div[0],
@@ -313,7 +319,7 @@ fn skewed_scene(rng: &mut Lcg, k: usize, cut: &str) -> String {
         g.x,
         g.y,
         g.z,
-        probes.join(", ")
+        probes
     )
 }
 
@@ -362,20 +368,7 @@ fn random_skewed_patches_read_as_triangles_swept_by_paths_or_flipped_unchanged()
         let base = probe_values(&parsed, &result).unwrap();
         solved += 1;
         for n in [1, 3] {
-            let mut points = Vec::new();
-            for j in 0..=n {
-                for i in 0..=n {
-                    points.push(o + u * (i as f64 / n as f64) + v * (j as f64 / n as f64));
-                }
-            }
-            let id = |i: usize, j: usize| j * (n + 1) + i;
-            let mut tris = Vec::new();
-            for j in 0..n {
-                for i in 0..n {
-                    tris.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-                    tris.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-                }
-            }
+            let (points, tris) = patch_triangles(o, u, v, n);
             let file = format!("skewed{n}.stl");
             std::fs::write(dir.path().join(&file), ascii_stl(&points, &tris)).unwrap();
             let d = largest_difference(
@@ -436,16 +429,7 @@ fn random_blades_on_straight_paths_cut_as_their_travel_at_every_step() {
         let v = rng.direction() * rng.range(0.02, 0.06);
         let f = rng.range(0.2, 0.8);
         let g = rng.direction() * 9.81;
-        let points: Vec<String> = (0..6)
-            .map(|_| {
-                format!(
-                    "[{:e}, {:e}, {:e}]",
-                    rng.range(0.0, 0.03),
-                    rng.range(0.0, 0.06),
-                    rng.range(0.0, 0.2)
-                )
-            })
-            .collect();
+        let points = beam_points(&mut rng, 6);
         let at = |p: Point3<f64>| format!("[{:e}, {:e}, {:e}]", p.x, p.y, p.z);
         let scene = |cut: String| {
             format!(
@@ -455,7 +439,7 @@ fn random_blades_on_straight_paths_cut_as_their_travel_at_every_step() {
                 g.y,
                 g.z,
                 ["linear", "corotational"][(k / 2) % 2],
-                points.join(", ")
+                points
             )
         };
         let travel = scene(format!(

@@ -27,22 +27,7 @@ fn patch() -> PlanarPatch {
 
 /// The patch as an n × n grid of quads, two triangles each (inner edges and vertices too).
 fn patch_triangles(p: &PlanarPatch, n: usize) -> (Vec<Point3<f64>>, Vec<[usize; 3]>) {
-    let mut v = Vec::new();
-    for j in 0..=n {
-        for i in 0..=n {
-            let (s, t) = (i as f64 / n as f64, j as f64 / n as f64);
-            v.push(p.origin + p.u * s + p.v * t);
-        }
-    }
-    let id = |i: usize, j: usize| j * (n + 1) + i;
-    let mut tris = Vec::new();
-    for j in 0..n {
-        for i in 0..n {
-            tris.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-            tris.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-        }
-    }
-    (v, tris)
+    common::patch_triangles(p.origin, p.u, p.v, n)
 }
 
 fn gmsh_triangles(v: &[Point3<f64>], tris: &[[usize; 3]]) -> String {

@@ -85,3 +85,29 @@ pub fn largest_difference(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> f64 {
         .map(|(x, y)| (x - y).norm() / scale)
         .fold(0.0, f64::max)
 }
+
+/// The patch origin + s u + t v, s, t in [0, 1], as an n × n grid of quads,
+/// two triangles each (inner edges and vertices too).
+pub fn patch_triangles(
+    origin: Point3<f64>,
+    u: Vector3<f64>,
+    v: Vector3<f64>,
+    n: usize,
+) -> (Vec<Point3<f64>>, Vec<[usize; 3]>) {
+    let mut points = Vec::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            let (s, t) = (i as f64 / n as f64, j as f64 / n as f64);
+            points.push(origin + u * s + v * t);
+        }
+    }
+    let id = |i: usize, j: usize| j * (n + 1) + i;
+    let mut tris = Vec::new();
+    for j in 0..n {
+        for i in 0..n {
+            tris.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            tris.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    (points, tris)
+}
