@@ -478,11 +478,25 @@ pub struct CutSet {
     /// the nodes of front elements; the front moves with the blade, so
     /// every step of a sweep is a cut event).
     pub front: FrontMode,
+    /// Per item, what its `[[cut]]` table says (its own `snap`, `front` and
+    /// `tip_radius`); items beyond it take `snap` and `front` above and no
+    /// radius (sets built in code).
+    pub options: Vec<CutOptions>,
+}
+
+/// How one cut of a [`CutSet`] is set up.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CutOptions {
+    pub snap: f64,
+    pub front: FrontMode,
+    /// `Some(R)`: tip-enrich every node within R of the front (geometric).
+    pub tip_radius: Option<f64>,
 }
 
 impl CutSet {
     /// The cuts of a scene: its patches, its surfaces read from their files,
-    /// its blades; one snap for all (cut[0]'s), as the scene's set-up uses.
+    /// its blades; each set up with its own keys (`CutSpec::options`), as the
+    /// static set-up takes them.
     pub fn from_scene(scene: &crate::scene::Scene) -> Result<CutSet, BladeError> {
         use crate::scene::CutGeometry;
         let mut items = Vec::with_capacity(scene.cuts.len());
@@ -498,22 +512,33 @@ impl CutSet {
                 }
             });
         }
-        let snap = scene
+        // Each cut as its table says (as the static set-up takes them:
+        // `CutSpec::input`); the set's own snap and front are cut[0]'s.
+        let options: Vec<CutOptions> = scene
             .cuts
+            .iter()
+            .map(crate::scene::CutSpec::options)
+            .collect();
+        let (snap, front) = options
             .first()
-            .map_or(crate::cut::DEFAULT_SNAP, |c| c.snap);
-        // Scenes give `front` per cut; a progressive run treats all fronts
-        // alike (cut[0]'s, default as for any cut: tip).
-        let front = match scene
-            .cuts
-            .first()
-            .and_then(|c| c.front)
-            .unwrap_or(crate::setup::DEFAULT_FRONT)
-        {
-            crate::scene::FrontMode::Tip => FrontMode::Tip,
-            crate::scene::FrontMode::Extend => FrontMode::Extend,
-        };
-        Ok(CutSet { items, snap, front })
+            .map_or((crate::cut::DEFAULT_SNAP, FrontMode::Extend), |o| {
+                (o.snap, o.front)
+            });
+        Ok(CutSet {
+            items,
+            snap,
+            front,
+            options,
+        })
+    }
+
+    /// How item `k` is set up.
+    pub fn options(&self, k: usize) -> CutOptions {
+        self.options.get(k).copied().unwrap_or(CutOptions {
+            snap: self.snap,
+            front: self.front,
+            tip_radius: None,
+        })
     }
 
     pub fn blades(&self) -> impl Iterator<Item = &Blade> {
@@ -583,12 +608,15 @@ impl CutSet {
             }
             let inputs: Vec<CutInput<'_>> = parts
                 .iter()
-                .map(|p| CutInput {
-                    surface: p.1,
-                    snap: self.snap,
-                    front: self.front,
-                    tip_radius: None,
-                    blending: crate::cut::Blending::None,
+                .map(|p| {
+                    let o = self.options(p.0);
+                    CutInput {
+                        surface: p.1,
+                        snap: o.snap,
+                        front: o.front,
+                        tip_radius: o.tip_radius,
+                        blending: crate::cut::Blending::None,
+                    }
                 })
                 .collect();
             match setup_cut(mesh, &inputs) {
@@ -698,8 +726,9 @@ impl SweepIndex {
         let mut straight = Vec::new();
         let mut paths = Vec::new();
         for b in cuts.blades() {
+            let options = cuts.options(b.index);
             let straight_patch = match b.swept(b.end()) {
-                Some(Swept::Patch(p)) if cuts.front == FrontMode::Extend => Some(p),
+                Some(Swept::Patch(p)) if options.front == FrontMode::Extend => Some(p),
                 _ => None,
             };
             let Some(p) = straight_patch else {
@@ -714,7 +743,7 @@ impl SweepIndex {
                 .zip(&h)
                 .map(|(x, hi)| {
                     let f = p.level_set(x);
-                    if f.abs() < cuts.snap * hi {
+                    if f.abs() < options.snap * hi {
                         0.0
                     } else {
                         f

@@ -247,15 +247,26 @@ impl Scene {
 impl crate::scene::CutSpec {
     /// The cut module's input for this cut on `surface`.
     pub fn input<'a>(&self, surface: &'a dyn CutSurface) -> CutInput<'a> {
+        let o = self.options();
         CutInput {
             surface,
+            snap: o.snap,
+            front: o.front,
+            tip_radius: o.tip_radius,
+            blending: crate::cut::Blending::None,
+        }
+    }
+
+    /// Its snap, front treatment (the default where the table gives none)
+    /// and tip radius: a progressive run sets each cut up with these too.
+    pub fn options(&self) -> crate::blade::CutOptions {
+        crate::blade::CutOptions {
             snap: self.snap,
             front: match self.front.unwrap_or(DEFAULT_FRONT) {
                 FrontMode::Tip => crate::cut::FrontMode::Tip,
                 FrontMode::Extend => crate::cut::FrontMode::Extend,
             },
             tip_radius: self.tip_radius,
-            blending: crate::cut::Blending::None,
         }
     }
 }

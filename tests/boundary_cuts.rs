@@ -183,6 +183,7 @@ fn cut_events_fix_and_load_new_enriched_dofs_as_a_build_does() {
             items: vec![CutItem::Blade(blade.clone())],
             snap: DEFAULT_SNAP,
             front,
+            options: Vec::new(),
         };
         let build = |cut| {
             Model::build(xfem_cut::model::ModelInput {

@@ -98,6 +98,7 @@ pub fn seed_blade(t0: f64, t1: f64) -> CutSet {
         items: vec![CutItem::Blade(blade)],
         snap: DEFAULT_SNAP,
         front: FrontMode::Extend,
+        options: Vec::new(),
     }
 }
 
