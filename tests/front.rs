@@ -1404,7 +1404,7 @@ fn random_fronts_orders_measure() {
     // the ramp in blending elements. Measured (L2 / energy orders 20 → 28):
     // without 1.56 … 1.79 / 0.80 … 0.89 (12 → 20: 1.50 … 1.67 / 0.75 … 0.77),
     // slowly rising; with the ramp 1.85 … 1.90 / 0.94 … 0.97, and errors at
-    // 28 2.4–2.8× (L2) and 2.6–2.8× (energy) lower at 1.2× the DOFs. The
+    // 28 2.4–2.8× (L2) and 2.7–2.8× (energy) lower at 1.2× the DOFs. The
     // blending elements hold the rest: a finer tip quadrature (collapsed
     // rules of order 6, near-front cells refined twice) moved the errors at
     // 12 and 20 by ≤ 0.3 % and the orders not at all.
