@@ -1710,13 +1710,37 @@ impl Integrator<'_> {
     ) -> nalgebra::DMatrix<f64> {
         let n = 3 * m;
         let nq = weights.len();
-        let g = nalgebra::DMatrixView::from_slice(columns, n, nq);
         // (clone_owned of a view goes element by element: 9 % of a tip event.)
         let mut gw = nalgebra::DMatrix::from_column_slice(n, nq, columns);
         for (mut col, &w) in gw.column_iter_mut().zip(weights) {
             col *= w;
         }
-        let a = &gw * g.transpose();
+        // A = (G W) Gᵀ is symmetric: its lower triangle from one product
+        // (faer's triangular matmul: 1.2–1.3× faster than the full product at
+        // a Tet4 tip element's 60 × 148), mirrored.
+        let mut a = nalgebra::DMatrix::<f64>::zeros(n, n);
+        {
+            use faer::linalg::matmul::triangular::{matmul, BlockStructure};
+            let gw = faer::MatRef::from_column_major_slice(gw.as_slice(), n, nq);
+            let g = faer::MatRef::from_column_major_slice(columns, n, nq);
+            let out = faer::MatMut::from_column_major_slice_mut(a.as_mut_slice(), n, n);
+            matmul(
+                out,
+                BlockStructure::TriangularLower,
+                faer::Accum::Replace,
+                gw,
+                BlockStructure::Rectangular,
+                g.transpose(),
+                BlockStructure::Rectangular,
+                1.0,
+                faer::Par::Seq,
+            );
+        }
+        for c in 1..n {
+            for r in 0..c {
+                a[(r, c)] = a[(c, r)];
+            }
+        }
         let total: f64 = weights.iter().sum();
         let grads = block.grads.len() as u32;
         for f in 0..m {
