@@ -99,20 +99,32 @@ def generate(family: str, h: float, h_front: float | None = None) -> tuple[np.nd
         if h_front is not None:
             gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
             grade(family, h_front, h)
-        gmsh.option.setNumber("Mesh.Algorithm3D", 1)
-        gmsh.model.mesh.generate(3)
-        tags, coords, _ = gmsh.model.mesh.getNodes()
-        points = coords.reshape(-1, 3)
-        index = {int(t): i for i, t in enumerate(tags)}
-        _, tet_nodes = gmsh.model.mesh.getElementsByType(4)
-        tets = np.array([index[int(t)] for t in tet_nodes], dtype=np.int64).reshape(-1, 4)
+        points, tets, _ = generate_tets()
     finally:
         gmsh.finalize()
-    # Keep only the nodes used by tets, in order of first use (deterministic given the mesh).
+    return used_nodes(points, tets)[:2]
+
+
+def generate_tets() -> tuple[np.ndarray, np.ndarray, dict[int, int]]:
+    """Meshes the current gmsh model in 3-D (Delaunay): all its nodes, its tets as node indices, and
+    the map from gmsh node tags to those indices."""
+    gmsh.option.setNumber("Mesh.Algorithm3D", 1)
+    gmsh.model.mesh.generate(3)
+    tags, coords, _ = gmsh.model.mesh.getNodes()
+    points = coords.reshape(-1, 3)
+    index = {int(t): i for i, t in enumerate(tags)}
+    _, tet_nodes = gmsh.model.mesh.getElementsByType(4)
+    tets = np.array([index[int(t)] for t in tet_nodes], dtype=np.int64).reshape(-1, 4)
+    return points, tets, index
+
+
+def used_nodes(points: np.ndarray, tets: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Only the nodes the tets use, in index order (deterministic given the mesh): points, tets,
+    and the kept nodes' old indices."""
     used = np.unique(tets)
     remap = -np.ones(len(points), dtype=np.int64)
     remap[used] = np.arange(len(used))
-    return points[used], remap[tets]
+    return points[used], remap[tets], used
 
 
 def duplicate(points: np.ndarray, tets: np.ndarray, on_cut: np.ndarray, above: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

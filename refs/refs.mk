@@ -2,7 +2,7 @@
 REFS_PY := /usr/bin/python3
 REFS_DEBS := python3-dolfinx python3-gmsh python3-meshio python3-scipy python3-matplotlib libopenblas0-pthread python3-venv openmpi-bin
 
-.PHONY: refs-env refs refs-test refs-uniform pictures
+.PHONY: refs-env refs refs-test refs-uniform pictures oblique
 
 # Debian's FEniCSx, gmsh and meshio (with OpenBLAS for a fair MUMPS), installed when missing.
 refs-env:
@@ -28,6 +28,13 @@ refs-test: refs-env
 # The old reference (uniform 2.8 mm, P2, CG + GAMG): only to measure its error against the graded one.
 refs-uniform: refs-env
 	cd refs && $(REFS_PY) make_refs.py --set uniform --np $(NP)
+
+# Random oblique crack fronts (edge, corner and inside patches) against remeshed references:
+# X-FEM tip / geometric tip / extend and pre-cut FEM, Tet4 and Tet10, per level
+# (refs/oblique/run.py; about 45 min for the 8 default scenes on 2 cores; not part of
+# `make report`): refs/out/oblique/summary.txt. `make oblique SEEDS="11 14"` runs those scenes.
+oblique: build refs-env
+	cd refs/oblique && $(REFS_PY) run.py $(SEEDS)
 
 # Pictures (headless): X-FEM structured level 2 Tet4 with its cut opened beside the graded
 # reference, reports/pictures/<case>.png; remade when the solver, the case or the reference changed.
