@@ -298,6 +298,8 @@ impl Model {
         if let Some(c) = cut.as_ref() {
             let enriched = enriched_fixes(mesh.n_nodes(), c, &fixed);
             fixed.extend(enriched);
+            let gauge = ramp_gauge_fixes(&mesh, c, &fixed);
+            fixed.extend(gauge);
         }
         let (equation, prescribed, n_free) = number_dofs(n_shape, &fixed);
         let pattern = element_pattern(&flat, &equation, n_free);
@@ -2111,6 +2113,97 @@ fn enriched_fixes(
     for &(node, comps) in fixed.iter().filter(|(n, _)| *n < n_nodes) {
         let zero = comps.map(|v| v.map(|_| 0.0));
         out.extend(enriched_shapes_of(n_nodes, cut, node).map(|s| (s, zero)));
+    }
+    out
+}
+
+/// With the ramp ([`crate::cut::Blending::Ramp`]) the tip functions are
+/// linearly dependent. Of (φ, ψ) the four branch functions satisfy
+/// φ (F₀ − F₃) + ψ F₂ = 0 and φ (F₁ − F₂) − ψ F₃ = 0 (φ F₀ = r F₂,
+/// ψ F₀ = r (F₃ − F₀), φ F₁ = r F₃, ψ F₁ = r (F₁ − F₂)), and φ, ψ are
+/// interpolated from the vertices. Every vertex of an element holding a node
+/// of I carries λ_k R (F − F(x_k)) with the ramp, so the tip DOFs a_k0 = φ_k,
+/// a_k3 = −φ_k, a_k2 = ψ_k (and a_k1 = φ_k, a_k2 = −φ_k, a_k3 = −ψ_k) of a
+/// connected region of tip nodes make the zero field, in each component: the
+/// stiffness of a body the region's tip DOFs are not pinned in is singular
+/// (the seed's beam at L0: eigenvalue 1e-13 of a matrix whose largest
+/// diagonal is 2e4). Without the ramp the blending elements, whose other
+/// vertices carry no tip functions, break the identity. Per region and per
+/// component in which no tip node with (φ, ψ) ≠ 0 is prescribed, F₀ and F₁
+/// of the region's node with the largest |φ| are prescribed to zero: both
+/// combinations have φ_m there, so the field space is the same.
+fn ramp_gauge_fixes(
+    mesh: &TetMesh,
+    cut: &CutSetup,
+    fixed: &[(usize, [Option<f64>; 3])],
+) -> Vec<(usize, [Option<f64>; 3])> {
+    if cut.ramp.is_empty() || cut.n_tip == 0 {
+        return Vec::new();
+    }
+    let n_nodes = mesh.n_nodes();
+    // Regions: tip nodes joined through the elements holding tip functions.
+    let mut parent: Vec<usize> = (0..n_nodes).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    for e in 0..mesh.n_elements() {
+        let v = mesh.vertices(e);
+        if !cut.holds_tip(mesh.element(e)) {
+            continue;
+        }
+        let tips: Vec<usize> = v.into_iter().filter(|&i| cut.tip[i].is_some()).collect();
+        for w in tips.windows(2) {
+            let (a, b) = (root(&mut parent, w[0]), root(&mut parent, w[1]));
+            parent[a] = b;
+        }
+    }
+    // Components prescribed at tip nodes off the front, per node.
+    let mut pinned = vec![[false; 3]; n_nodes];
+    let first = n_nodes + cut.n_enriched;
+    for &(shape, comps) in fixed {
+        let node = if shape < n_nodes {
+            Some(shape)
+        } else if shape >= first {
+            let t = (shape - first) / N_BRANCH;
+            cut.tip.iter().position(|&x| x == Some(t))
+        } else {
+            None
+        };
+        if let Some(i) = node.filter(|&i| cut.tip[i].is_some()) {
+            if cut.phi[i] != 0.0 || cut.front_level.get(i).is_some_and(|&p| p != 0.0) {
+                for (c, v) in comps.iter().enumerate() {
+                    pinned[i][c] |= v.is_some();
+                }
+            }
+        }
+    }
+    // Per region: its pinned components and its node of largest |φ|.
+    let mut regions: std::collections::BTreeMap<usize, ([bool; 3], Option<usize>)> =
+        std::collections::BTreeMap::new();
+    for i in (0..n_nodes).filter(|&i| cut.tip[i].is_some()) {
+        let r = root(&mut parent, i);
+        let entry = regions.entry(r).or_insert(([false; 3], None));
+        for c in 0..3 {
+            entry.0[c] |= pinned[i][c];
+        }
+        if cut.phi[i] != 0.0 && entry.1.is_none_or(|m| cut.phi[i].abs() > cut.phi[m].abs()) {
+            entry.1 = Some(i);
+        }
+    }
+    let mut out = Vec::new();
+    for (pins, m) in regions.values() {
+        let (Some(m), false) = (m, pins.iter().all(|&p| p)) else {
+            continue;
+        };
+        let comps = pins.map(|p| (!p).then_some(0.0));
+        let t = cut.tip[*m].expect("a tip node");
+        let base = first + N_BRANCH * t;
+        out.push((base, comps));
+        out.push((base + 1, comps));
     }
     out
 }
