@@ -521,7 +521,7 @@ impl CutSet {
             .collect();
         let (snap, front) = options
             .first()
-            .map_or((crate::cut::DEFAULT_SNAP, FrontMode::Extend), |o| {
+            .map_or((crate::cut::DEFAULT_SNAP, FrontMode::Tip), |o| {
                 (o.snap, o.front)
             });
         Ok(CutSet {

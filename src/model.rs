@@ -2164,12 +2164,17 @@ fn ramp_gauge_fixes(
     // Components prescribed at tip nodes off the front, per node.
     let mut pinned = vec![[false; 3]; n_nodes];
     let first = n_nodes + cut.n_enriched;
+    let mut tip_node = vec![0; cut.n_tip];
+    for (i, t) in cut.tip.iter().enumerate() {
+        if let Some(t) = t {
+            tip_node[*t] = i;
+        }
+    }
     for &(shape, comps) in fixed {
         let node = if shape < n_nodes {
             Some(shape)
         } else if shape >= first {
-            let t = (shape - first) / N_BRANCH;
-            cut.tip.iter().position(|&x| x == Some(t))
+            tip_node.get((shape - first) / N_BRANCH).copied()
         } else {
             None
         };
