@@ -486,6 +486,32 @@ mod tests {
     use crate::mesh::tet_volume;
 
     #[test]
+    fn branch_functions_satisfy_two_linear_identities_in_the_level_sets() {
+        // φ (F₀ − F₃) + ψ F₂ = 0 and φ (F₁ − F₂) − ψ F₃ = 0 at every (φ, ψ)
+        // on either side: with affine level sets these are dependences of
+        // the tip functions wherever every vertex of an element carries them
+        // (the ramp; `model::ramp_gauge_fixes`).
+        let mut seed = 99u64;
+        let mut unit = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let g = Vector3::zeros();
+        for _ in 0..200 {
+            let (phi, psi) = (unit() * 0.03, unit() * 0.03);
+            let side = if phi >= 0.0 { 1 } else { -1 };
+            let (f, _) = branch_with_gradients(phi, psi, &g, &g, side);
+            let scale = (phi * phi + psi * psi).sqrt().powf(1.5);
+            let one = phi * (f[0] - f[3]) + psi * f[2];
+            let two = phi * (f[1] - f[2]) - psi * f[3];
+            assert!(one.abs() <= 1e-14 * scale, "{phi} {psi}: {one:e}");
+            assert!(two.abs() <= 1e-14 * scale, "{phi} {psi}: {two:e}");
+        }
+    }
+
+    #[test]
     fn branch_gradients_match_finite_differences() {
         // Linear level sets with oblique gradients, at points on both sides and behind/ahead of the front.
         let gphi = Vector3::new(0.2, 1.1, -0.3);
