@@ -9,6 +9,8 @@
 
 use crate::mesh::{barycentric, TetMesh};
 use nalgebra::{Point3, Vector3};
+use rstar::primitives::{GeomWithData, Rectangle};
+use rstar::{RTree, AABB};
 
 /// Number of branch functions per tip-enriched node.
 pub const N_BRANCH: usize = 4;
@@ -91,9 +93,6 @@ pub fn branch_with_gradients(
     (values, partial.map(|(a, b)| dr * a + dtheta * b))
 }
 
-/// A triangle with its bounding box (lower, upper corner).
-type BoxedTriangle = ([Point3<f64>; 3], Point3<f64>, Point3<f64>);
-
 /// The part of the boundary segments of a cut surface that is crack front:
 /// the segments running through the body — through the interior of an
 /// element, or along its faces and edges inside the body (a front on mesh
@@ -101,38 +100,115 @@ type BoxedTriangle = ([Point3<f64>; 3], Point3<f64>, Point3<f64>);
 /// faces or outside it are not front.
 pub fn front_segments(mesh: &TetMesh, boundary: &[[Point3<f64>; 2]]) -> Vec<[Point3<f64>; 2]> {
     let boxes = element_boxes(mesh);
-    // The body's outer faces (with their bounding boxes): a segment piece on
-    // them is not front.
-    let outer: Vec<BoxedTriangle> = mesh
+    // The body's outer faces, in an R*-tree of their bounding boxes: a
+    // segment piece on them is not front.
+    let outer: Vec<[Point3<f64>; 3]> = mesh
         .boundary_faces()
         .into_iter()
-        .map(|(f, _)| {
-            let t = f.map(|j| mesh.nodes[j]);
-            (t, t[0].inf(&t[1]).inf(&t[2]), t[0].sup(&t[1]).sup(&t[2]))
-        })
+        .map(|(f, _)| f.map(|j| mesh.nodes[j]))
         .collect();
+    let tree = RTree::bulk_load(
+        outer
+            .iter()
+            .enumerate()
+            .map(|(k, t)| {
+                let (lo, hi) = (t[0].inf(&t[1]).inf(&t[2]), t[0].sup(&t[1]).sup(&t[2]));
+                GeomWithData::new(Rectangle::from_corners(lo.into(), hi.into()), k)
+            })
+            .collect(),
+    );
     let on_outer = |x: &Point3<f64>, tol: f64| {
-        outer.iter().any(|(t, lo, hi)| {
-            (0..3).all(|c| x[c] >= lo[c] - tol && x[c] <= hi[c] + tol)
-                && triangle_distance(x, t) <= tol
-        })
+        let near = AABB::from_corners(
+            [x.x - tol, x.y - tol, x.z - tol],
+            [x.x + tol, x.y + tol, x.z + tol],
+        );
+        tree.locate_in_envelope_intersecting(&near)
+            .any(|t| triangle_distance(x, &outer[t.data]) <= tol)
     };
+    let spans: Vec<_> = boundary
+        .iter()
+        .map(|seg| (seg[0].inf(&seg[1]), seg[0].sup(&seg[1])))
+        .collect();
+    let mut front = vec![false; boundary.len()];
+    for_each_box_meeting(&boxes, &spans, |e, k| {
+        if !front[k] {
+            let (lo, hi) = boxes[e];
+            let tol = 1e-9 * (hi - lo).norm();
+            front[k] = segment_piece_midpoint(&mesh.vertex_points(e), &boundary[k])
+                .is_some_and(|m| !on_outer(&m, tol));
+        }
+    });
     boundary
         .iter()
-        .filter(|seg| {
-            let (slo, shi) = (seg[0].inf(&seg[1]), seg[0].sup(&seg[1]));
-            (0..mesh.n_elements()).any(|e| {
-                let (lo, hi) = boxes[e];
-                if (0..3).any(|c| shi[c] < lo[c] || slo[c] > hi[c]) {
-                    return false;
-                }
-                let tol = 1e-9 * (hi - lo).norm();
-                segment_piece_midpoint(&mesh.vertex_points(e), seg)
-                    .is_some_and(|m| !on_outer(&m, tol))
-            })
-        })
-        .copied()
+        .zip(&front)
+        .filter(|(_, &f)| f)
+        .map(|(seg, _)| *seg)
         .collect()
+}
+
+/// Calls `visit(e, k)` for every element box `e` of `boxes` that meets the
+/// query box `k` of `queries` (closed boxes, lower and upper corner), once
+/// per pair: one pass over the elements, the queries binned in a grid over
+/// their union. (Scanning every element per query took 0.14 s for the 240
+/// boundary segments of a 7200-triangle surface on 328k Tet4.)
+fn for_each_box_meeting(
+    boxes: &[(Point3<f64>, Point3<f64>)],
+    queries: &[(Point3<f64>, Point3<f64>)],
+    mut visit: impl FnMut(usize, usize),
+) {
+    let Some(first) = queries.first() else {
+        return;
+    };
+    let (lo, hi) = queries
+        .iter()
+        .fold(*first, |(a, b), (l, h)| (a.inf(l), b.sup(h)));
+    // About two queries a cell, at most 64 cells an axis.
+    let n = ((queries.len() as f64 / 2.0).cbrt().ceil() as usize).clamp(1, 64);
+    let size = (hi - lo) / n as f64;
+    let cell = |x: f64, c: usize| -> usize {
+        if size[c] > 0.0 {
+            (((x - lo[c]) / size[c]).floor().max(0.0) as usize).min(n - 1)
+        } else {
+            0
+        }
+    };
+    let range = |a: &Point3<f64>, b: &Point3<f64>| -> [(usize, usize); 3] {
+        [0, 1, 2].map(|c| (cell(a[c], c), cell(b[c], c)))
+    };
+    let mut bins: Vec<Vec<usize>> = vec![Vec::new(); n * n * n];
+    for (k, (a, b)) in queries.iter().enumerate() {
+        let r = range(a, b);
+        for i in r[0].0..=r[0].1 {
+            for j in r[1].0..=r[1].1 {
+                for l in r[2].0..=r[2].1 {
+                    bins[(i * n + j) * n + l].push(k);
+                }
+            }
+        }
+    }
+    let meets = |(a, b): &(Point3<f64>, Point3<f64>), (c, d): &(Point3<f64>, Point3<f64>)| {
+        (0..3).all(|i| a[i] <= d[i] && c[i] <= b[i])
+    };
+    // The last element each query was offered to (a query spans several bins).
+    let mut seen = vec![usize::MAX; queries.len()];
+    for (e, b) in boxes.iter().enumerate() {
+        if !meets(b, &(lo, hi)) {
+            continue;
+        }
+        let r = range(&b.0, &b.1);
+        for i in r[0].0..=r[0].1 {
+            for j in r[1].0..=r[1].1 {
+                for l in r[2].0..=r[2].1 {
+                    for &k in &bins[(i * n + j) * n + l] {
+                        if seen[k] != e && meets(b, &queries[k]) {
+                            seen[k] = e;
+                            visit(e, k);
+                        }
+                    }
+                }
+            }
+        }
+    }
 }
 
 /// Each element's bounding box (lower, upper corner).
@@ -157,30 +233,41 @@ fn element_boxes(mesh: &TetMesh) -> Vec<(Point3<f64>, Point3<f64>)> {
 pub fn extend_front_exits(mesh: &TetMesh, front: &[[Point3<f64>; 2]]) -> Vec<[Point3<f64>; 2]> {
     let (lo, hi) = mesh.bounding_box();
     let diagonal = (hi - lo).norm();
-    let boxes = element_boxes(mesh);
-    let in_body = |x: &Point3<f64>| {
-        (0..mesh.n_elements()).any(|e| {
-            let (lo, hi) = boxes[e];
-            (0..3).all(|c| x[c] >= lo[c] && x[c] <= hi[c])
-                && barycentric(&mesh.vertex_points(e), x)
-                    .is_some_and(|l| l.iter().all(|&v| v >= -1e-12))
+    let step = 1e-6 * diagonal;
+    // Each segment's ends continued a step beyond it, and whether they are
+    // in the body (in some closed element).
+    let ends: Vec<Point3<f64>> = front
+        .iter()
+        .flat_map(|seg| {
+            let d = seg[1] - seg[0];
+            let len = d.norm();
+            let dir = if len == 0.0 { d } else { d / len };
+            [seg[0] - dir * step, seg[1] + dir * step]
         })
-    };
+        .collect();
+    let points: Vec<_> = ends.iter().map(|x| (*x, *x)).collect();
+    let mut in_body = vec![false; ends.len()];
+    for_each_box_meeting(&element_boxes(mesh), &points, |e, k| {
+        if !in_body[k] {
+            in_body[k] = barycentric(&mesh.vertex_points(e), &ends[k])
+                .is_some_and(|l| l.iter().all(|&v| v >= -1e-12));
+        }
+    });
     front
         .iter()
-        .map(|seg| {
+        .enumerate()
+        .map(|(k, seg)| {
             let d = seg[1] - seg[0];
             let len = d.norm();
             if len == 0.0 {
                 return *seg;
             }
             let dir = d / len;
-            let step = 1e-6 * diagonal;
             let mut out = *seg;
-            if !in_body(&(seg[0] - dir * step)) {
+            if !in_body[2 * k] {
                 out[0] = seg[0] - dir * diagonal;
             }
-            if !in_body(&(seg[1] + dir * step)) {
+            if !in_body[2 * k + 1] {
                 out[1] = seg[1] + dir * diagonal;
             }
             out

@@ -155,21 +155,42 @@ impl TetMesh {
 
     /// Boundary faces (vertex triples, outward oriented) with their element.
     pub fn boundary_faces(&self) -> Vec<([usize; 3], usize)> {
-        let mut count: HashMap<[usize; 3], (usize, [usize; 3], usize)> = HashMap::new();
+        // Every element face by its sorted vertices packed in one key, sorted:
+        // a face met once is on the boundary. (A hash map of the faces took
+        // 0.23 s on 328k Tet4, most of a large surface's cut set-up.)
+        // Up to 2^21 nodes the key fits in 64 bits (half the sort's memory).
+        if self.n_nodes() < 1 << 21 {
+            self.faces_met_once(|k| (k[0] as u64) << 42 | (k[1] as u64) << 21 | k[2] as u64)
+        } else {
+            self.faces_met_once(|k| (k[0] as u128) << 84 | (k[1] as u128) << 42 | k[2] as u128)
+        }
+    }
+
+    /// [`TetMesh::boundary_faces`] with faces keyed by `pack` of their sorted vertices.
+    fn faces_met_once<K: Ord + Copy>(
+        &self,
+        pack: impl Fn([usize; 3]) -> K,
+    ) -> Vec<([usize; 3], usize)> {
+        let mut keys: Vec<(K, usize)> = Vec::with_capacity(4 * self.n_elements());
         for e in 0..self.n_elements() {
             let v = self.vertices(e);
-            for f in TET_FACES {
-                let tri = [v[f[0]], v[f[1]], v[f[2]]];
-                let mut key = tri;
+            for (k, f) in TET_FACES.iter().enumerate() {
+                let mut key = [v[f[0]], v[f[1]], v[f[2]]];
                 key.sort_unstable();
-                count.entry(key).or_insert((0, tri, e)).0 += 1;
+                keys.push((pack(key), 4 * e + k));
             }
         }
-        let mut faces: Vec<([usize; 3], usize)> = count
-            .into_values()
-            .filter(|(c, _, _)| *c == 1)
-            .map(|(_, tri, e)| (tri, e))
-            .collect();
+        keys.sort_unstable();
+        let mut faces = Vec::new();
+        for (i, (key, face)) in keys.iter().enumerate() {
+            let alone =
+                (i == 0 || keys[i - 1].0 != *key) && keys.get(i + 1).is_none_or(|n| n.0 != *key);
+            if alone {
+                let (e, f) = (face / 4, TET_FACES[face % 4]);
+                let v = self.vertices(e);
+                faces.push(([v[f[0]], v[f[1]], v[f[2]]], e));
+            }
+        }
         faces.sort_unstable();
         faces
     }
@@ -302,6 +323,16 @@ mod tests {
         let m = box_mesh(Point3::origin(), Point3::new(1.0, 1.0, 1.0), [3, 2, 2]);
         let b = m.boundary_faces();
         assert_eq!(b.len(), 2 * 2 * (3 * 2 + 2 * 2 + 3 * 2));
+        // The 128-bit keys of large meshes find the same faces, each outward:
+        // its element's fourth vertex lies behind it.
+        let wide = m.faces_met_once(|k| (k[0] as u128) << 84 | (k[1] as u128) << 42 | k[2] as u128);
+        assert_eq!(wide, b);
+        for (f, e) in &b {
+            let p = f.map(|i| m.nodes[i]);
+            let other = m.vertices(*e).into_iter().find(|i| !f.contains(i)).unwrap();
+            let n = (p[1] - p[0]).cross(&(p[2] - p[0]));
+            assert!(n.dot(&(m.nodes[other] - p[0])) < 0.0, "{f:?} of {e}");
+        }
     }
 
     #[test]
