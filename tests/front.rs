@@ -1301,6 +1301,24 @@ points = [{points}]
     }
 }
 
+/// The four random front orientations (normal, direction along the front)
+/// of `fronts_at_any_angle_converge_alike`: a 64-bit LCG from one seed.
+fn random_orientations() -> Vec<(Vector3<f64>, Vector3<f64>)> {
+    let mut seed = 12345u64;
+    let mut unit = || {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    };
+    (0..4)
+        .map(|_| {
+            let n = Vector3::new(unit(), unit(), unit());
+            (n, Vector3::new(unit(), unit(), unit()))
+        })
+        .collect()
+}
+
 #[test]
 fn fronts_at_any_angle_converge_alike() {
     // The exact field about fronts of other orientations: random ones and
@@ -1348,16 +1366,7 @@ fn fronts_at_any_angle_converge_alike() {
             0.0,
         ),
     ];
-    let mut seed = 12345u64;
-    let mut unit = || {
-        seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-    };
-    for _ in 0..4 {
-        let n = Vector3::new(unit(), unit(), unit());
-        let t = Vector3::new(unit(), unit(), unit());
+    for (n, t) in random_orientations() {
         orientations.push(("random, jittered", n, t, 0.2));
     }
     // (element, coarse and fine divisions, smallest L2 and energy orders)
@@ -1408,19 +1417,9 @@ fn random_fronts_orders_measure() {
     // blending elements hold the rest: a finer tip quadrature (collapsed
     // rules of order 6, near-front cells refined twice) moved the errors at
     // 12 and 20 by ≤ 0.3 % and the orders not at all.
-    let mut seed = 12345u64;
-    let mut unit = || {
-        seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-    };
-    let orientations: Vec<_> = (0..4)
-        .map(|_| {
-            let n = Vector3::new(unit(), unit(), unit());
-            let t = Vector3::new(unit(), unit(), unit());
-            Front::oriented(Point3::new(0.513, 0.479, 0.507), n, t)
-        })
+    let orientations: Vec<_> = random_orientations()
+        .into_iter()
+        .map(|(n, t)| Front::oriented(Point3::new(0.513, 0.479, 0.507), n, t))
         .collect();
     for (fr, blending) in orientations
         .iter()
