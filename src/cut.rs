@@ -80,6 +80,13 @@ pub trait CutSurface: Send + Sync {
     fn level_set_behind(&self, x: &Point3<f64>, front: &[[Point3<f64>; 2]]) -> (f64, bool) {
         (self.level_set(x), self.behind_front(x, front))
     }
+    /// Whether the surface may come within `reach` of `x` (conservative:
+    /// `true` when unsure). The set-up computes the level sets only at
+    /// nodes it may reach ([`level_set_reach`]); the default (every node)
+    /// suits surfaces whose level set costs no search.
+    fn may_reach(&self, _x: &Point3<f64>, _reach: f64) -> bool {
+        true
+    }
 }
 
 impl PlanarPatch {
@@ -558,6 +565,45 @@ fn lift_faces_the_front_crosses(
     }
 }
 
+/// Per node, how far the cut surface (and the front) may stay from it for
+/// its level sets to matter nowhere: 3 × the largest element size in the
+/// elements meeting its star, plus `tip_radius`.
+///
+/// The set-up reads φ and ψ at the nodes of cut and crossed elements, of
+/// the elements around enriched nodes (whether such a node keeps its
+/// Heaviside enrichment), and of the elements holding tip nodes (their
+/// branch functions); the ramp's blending ring is one element further. A
+/// node k of such an element E lies within h_C + h_E (an enriched node's
+/// cut element C beside E) or `tip_radius` + h_F + h_E (a tip node in F,
+/// the ramp ring in E) of the surface, and every one of these elements
+/// meets k's star, so the reach bounds all of it. Nodes beyond it: φ and
+/// ψ stand-ins of the + side, ahead (no element of theirs is crossed by
+/// the surface, nor holds an enriched node), which saves the nearest-
+/// triangle search at most nodes of a large mesh.
+fn level_set_reach(mesh: &TetMesh, star: &[Vec<usize>], tip_radius: Option<f64>) -> Vec<f64> {
+    let mut largest = vec![0.0f64; mesh.n_nodes()];
+    for e in 0..mesh.n_elements() {
+        let he = mesh.element_size(e);
+        for &i in mesh.element(e) {
+            largest[i] = largest[i].max(he);
+        }
+    }
+    let extra = tip_radius.unwrap_or(0.0);
+    star.iter()
+        .map(|elements| {
+            let h2 = elements
+                .iter()
+                .flat_map(|&e| mesh.element(e).iter().map(|&j| largest[j]))
+                .fold(0.0f64, f64::max);
+            if elements.is_empty() {
+                f64::INFINITY
+            } else {
+                3.0 * h2 + extra
+            }
+        })
+        .collect()
+}
+
 /// The set-up of one cut (`index` in the scene, for errors).
 fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSetup, CutError> {
     let (surface, snap) = (input.surface, input.snap);
@@ -572,6 +618,7 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
             star[i].push(e);
         }
     }
+    let reach = level_set_reach(mesh, &star, input.tip_radius);
     let boundary = surface.boundary();
     let front = match input.front {
         FrontMode::Extend => None,
@@ -581,20 +628,36 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
     let front_reach = front.as_deref().map(|f| front::extend_front_exits(mesh, f));
     // φ, and ψ from the unsnapped φ, the front segments and which side of
     // the front the node's foot is on (tip mode only).
+    // Nodes out of the surface's reach (and the front's) take stand-ins:
+    // φ = the reach (+ side), ψ = the distance to the front.
     let (mut phi, mut front_level): (Vec<f64>, Vec<f64>) = match &front {
         Some(front) => {
             let segments = front_reach.as_deref().unwrap_or_default();
             mesh.nodes
                 .iter()
-                .map(|x| {
-                    let (f, behind) = surface.level_set_behind(x, front);
+                .zip(&reach)
+                .map(|(x, &r)| {
                     let d = front::front_distance(x, segments);
+                    if d > r && !surface.may_reach(x, r) {
+                        return (r, d);
+                    }
+                    let (f, behind) = surface.level_set_behind(x, front);
                     (f, front::front_level_set(f, d, behind))
                 })
                 .unzip()
         }
         None => (
-            mesh.nodes.iter().map(|p| surface.level_set(p)).collect(),
+            mesh.nodes
+                .iter()
+                .zip(&reach)
+                .map(|(x, &r)| {
+                    if surface.may_reach(x, r) {
+                        surface.level_set(x)
+                    } else {
+                        r
+                    }
+                })
+                .collect(),
             Vec::new(),
         ),
     };

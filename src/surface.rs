@@ -510,6 +510,16 @@ impl CutSurface for TriangleSurface {
         self.level_set_from(x, self.closest(x))
     }
 
+    /// Whether a triangle's bounding box meets the cube of half-side
+    /// `reach` about x (a box query that stops at the first hit; a nearest
+    /// triangle search costs several times more far from the surface).
+    fn may_reach(&self, x: &Point3<f64>, reach: f64) -> bool {
+        if !reach.is_finite() {
+            return true;
+        }
+        self.near(*x, *x, reach).next().is_some()
+    }
+
     fn level_set_behind(&self, x: &Point3<f64>, front: &[[Point3<f64>; 2]]) -> (f64, bool) {
         let closest = self.closest(x);
         (

@@ -532,3 +532,118 @@ fn an_oblique_patch_entering_through_a_face_as_triangles_equals_it_running_on_ou
         }
     }
 }
+
+/// A triangle surface that computes its level sets at every node (the
+/// default `may_reach`), to compare with the set-up that skips far nodes.
+struct Everywhere<'a>(&'a TriangleSurface);
+
+impl CutSurface for Everywhere<'_> {
+    fn level_set(&self, x: &Point3<f64>) -> f64 {
+        self.0.level_set(x)
+    }
+    fn overlaps(&self, poly: &[Point3<f64>], reach: f64) -> bool {
+        self.0.overlaps(poly, reach)
+    }
+    fn contains(&self, x: &Point3<f64>, tol: f64) -> bool {
+        self.0.contains(x, tol)
+    }
+    fn boundary(&self) -> Vec<[Point3<f64>; 2]> {
+        self.0.boundary()
+    }
+    fn behind_front(&self, x: &Point3<f64>, front: &[[Point3<f64>; 2]]) -> bool {
+        self.0.behind_front(x, front)
+    }
+    fn level_set_behind(&self, x: &Point3<f64>, front: &[[Point3<f64>; 2]]) -> (f64, bool) {
+        self.0.level_set_behind(x, front)
+    }
+}
+
+#[test]
+fn nodes_far_from_a_triangle_surface_take_stand_in_level_sets_that_change_nothing() {
+    use xfem_cut::cut::Blending;
+    use xfem_cut::model::same_element_cut;
+    let s = arc();
+    let all = Everywhere(&s);
+    for tet10 in [false, true] {
+        let mesh = if tet10 {
+            bar([6, 5, 16]).to_tet10()
+        } else {
+            bar([8, 6, 16])
+        };
+        let inputs = |surface| {
+            let tip = CutInput::tip(surface, DEFAULT_SNAP, None);
+            [
+                CutInput::extend(surface, DEFAULT_SNAP),
+                tip,
+                CutInput::tip(surface, DEFAULT_SNAP, Some(0.2)),
+                CutInput {
+                    blending: Blending::Ramp,
+                    tip_radius: Some(0.15),
+                    ..tip
+                },
+            ]
+        };
+        for (skip, every) in inputs(&s).into_iter().zip(inputs(&all)) {
+            let a = setup_cut(&mesh, &[skip]).unwrap();
+            let b = setup_cut(&mesh, &[every]).unwrap();
+            let label = format!(
+                "tet10 {tet10}, {:?}, radius {:?}, {:?}",
+                skip.front, skip.tip_radius, skip.blending
+            );
+            // The nodes whose level sets the set-up reads: those of cut or
+            // crossed elements and of elements holding enriched or tip nodes.
+            let mut read = vec![false; mesh.n_nodes()];
+            for e in 0..mesh.n_elements() {
+                let v = mesh.vertices(e);
+                let conn = mesh.element(e);
+                let crossed =
+                    v.iter().any(|&i| b.phi[i] > 0.0) && v.iter().any(|&i| b.phi[i] < 0.0);
+                let enriched = b.holds_tip(conn)
+                    || conn
+                        .iter()
+                        .any(|&i| b.enriched[i].is_some() || b.tip[i].is_some());
+                if crossed || enriched {
+                    for &i in conn {
+                        read[i] = true;
+                    }
+                }
+            }
+            let stand_ins = (0..mesh.n_nodes())
+                .filter(|&i| a.phi[i] != b.phi[i])
+                .count();
+            println!("{label}: {stand_ins} of {} nodes stand-ins", mesh.n_nodes());
+            assert!(stand_ins >= 100, "{label}: {stand_ins} stand-ins");
+            for i in (0..mesh.n_nodes()).filter(|&i| read[i]) {
+                assert_eq!(a.phi[i], b.phi[i], "{label}: φ at node {i}");
+                assert_eq!(
+                    a.front_level.get(i),
+                    b.front_level.get(i),
+                    "{label}: ψ at {i}"
+                );
+            }
+            assert_eq!(a.enriched, b.enriched, "{label}");
+            assert_eq!(a.tip, b.tip, "{label}");
+            assert!(
+                a.tip.iter().any(|t| t.is_some()) || skip.front == xfem_cut::cut::FrontMode::Extend
+            );
+            assert_eq!(a.ramp, b.ramp, "{label}");
+            for i in 0..mesh.n_nodes() {
+                if a.enriched[i].is_some() {
+                    assert_eq!(a.node_side[i], b.node_side[i], "{label}: side of {i}");
+                }
+            }
+            assert!(
+                a.elements
+                    .iter()
+                    .zip(&b.elements)
+                    .all(|(x, y)| same_element_cut(x, y)),
+                "{label}: element cuts differ"
+            );
+            let g = Vector3::new(-9.81, 0.0, 3.0);
+            let ma = model(&mesh, Some(a), Formulation::Linear, g, None, false).unwrap();
+            let mb = model(&mesh, Some(b), Formulation::Linear, g, None, false).unwrap();
+            let (da, db) = (solve(&ma), solve(&mb));
+            assert_eq!(da, db, "{label}: solutions differ");
+        }
+    }
+}
