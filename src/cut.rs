@@ -576,29 +576,39 @@ fn lift_faces_the_front_crosses(
 /// node k of such an element E lies within h_C + h_E (an enriched node's
 /// cut element C beside E) or `tip_radius` + h_F + h_E (a tip node in F,
 /// the ramp ring in E) of the surface, and every one of these elements
-/// meets k's star, so the reach bounds all of it. Nodes beyond it: φ and
-/// ψ stand-ins of the + side, ahead (no element of theirs is crossed by
-/// the surface, nor holds an enriched node), which saves the nearest-
-/// triangle search at most nodes of a large mesh.
-fn level_set_reach(mesh: &TetMesh, star: &[Vec<usize>], tip_radius: Option<f64>) -> Vec<f64> {
-    let mut largest = vec![0.0f64; mesh.n_nodes()];
+/// meets k's star, so the reach bounds all of it; a node within
+/// `tip_radius` of the front (carried on outside the body) is within its
+/// reach of the front. Nodes beyond the reach of both: φ and ψ stand-ins
+/// of the + side, ahead (no element of theirs is crossed by the surface,
+/// nor holds an enriched or tip node), which saves the nearest-triangle
+/// search and the distance to every front segment at most nodes of a
+/// large mesh.
+fn level_set_reach(mesh: &TetMesh, tip_radius: Option<f64>) -> Vec<f64> {
+    let n = mesh.n_nodes();
+    let mut largest = vec![0.0f64; n];
     for e in 0..mesh.n_elements() {
         let he = mesh.element_size(e);
         for &i in mesh.element(e) {
             largest[i] = largest[i].max(he);
         }
     }
+    // The largest of `largest` over the nodes of the elements of each star.
+    let mut h2 = vec![f64::NEG_INFINITY; n];
+    for e in 0..mesh.n_elements() {
+        let conn = mesh.element(e);
+        let m = conn.iter().fold(0.0f64, |m, &j| m.max(largest[j]));
+        for &i in conn {
+            h2[i] = h2[i].max(m);
+        }
+    }
     let extra = tip_radius.unwrap_or(0.0);
-    star.iter()
-        .map(|elements| {
-            let h2 = elements
-                .iter()
-                .flat_map(|&e| mesh.element(e).iter().map(|&j| largest[j]))
-                .fold(0.0f64, f64::max);
-            if elements.is_empty() {
+    h2.into_iter()
+        .map(|h| {
+            if h == f64::NEG_INFINITY {
+                // A node of no element.
                 f64::INFINITY
             } else {
-                3.0 * h2 + extra
+                3.0 * h + extra
             }
         })
         .collect()
@@ -618,7 +628,7 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
             star[i].push(e);
         }
     }
-    let reach = level_set_reach(mesh, &star, input.tip_radius);
+    let reach = level_set_reach(mesh, input.tip_radius);
     let boundary = surface.boundary();
     let front = match input.front {
         FrontMode::Extend => None,
@@ -628,33 +638,44 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
     let front_reach = front.as_deref().map(|f| front::extend_front_exits(mesh, f));
     // φ, and ψ from the unsnapped φ, the front segments and which side of
     // the front the node's foot is on (tip mode only).
-    // Nodes out of the surface's reach (and the front's) take stand-ins:
-    // φ = the reach (+ side), ψ = the distance to the front.
+    // Nodes out of the surface's reach and the front's take stand-ins: φ = ψ
+    // = the reach (+ side, ahead).
+    let front_boxes = front_reach
+        .as_deref()
+        .map(|f| (f, front::SegmentBoxes::new(f)));
+    let far: Vec<bool> = mesh
+        .nodes
+        .iter()
+        .zip(&reach)
+        .map(|(x, &r)| {
+            !surface.may_reach(x, r)
+                && front_boxes.as_ref().is_none_or(|(f, boxes)| {
+                    !boxes.may_reach(x, r) || front::front_distance(x, f) > r
+                })
+        })
+        .collect();
     let (mut phi, mut front_level): (Vec<f64>, Vec<f64>) = match &front {
         Some(front) => {
             let segments = front_reach.as_deref().unwrap_or_default();
-            mesh.nodes
-                .iter()
-                .zip(&reach)
-                .map(|(x, &r)| {
-                    let d = front::front_distance(x, segments);
-                    if d > r && !surface.may_reach(x, r) {
-                        return (r, d);
+            (0..n_nodes)
+                .map(|i| {
+                    if far[i] {
+                        return (reach[i], reach[i]);
                     }
+                    let x = &mesh.nodes[i];
+                    let d = front::front_distance(x, segments);
                     let (f, behind) = surface.level_set_behind(x, front);
                     (f, front::front_level_set(f, d, behind))
                 })
                 .unzip()
         }
         None => (
-            mesh.nodes
-                .iter()
-                .zip(&reach)
-                .map(|(x, &r)| {
-                    if surface.may_reach(x, r) {
-                        surface.level_set(x)
+            (0..n_nodes)
+                .map(|i| {
+                    if far[i] {
+                        reach[i]
                     } else {
-                        r
+                        surface.level_set(&mesh.nodes[i])
                     }
                 })
                 .collect(),
@@ -851,9 +872,10 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
             }
         }
         if let Some(radius) = input.tip_radius {
+            // Far nodes are further than their reach (≥ the radius) from the front.
             for (i, x) in mesh.nodes.iter().enumerate() {
                 let reach = front_reach.as_deref().unwrap_or(segments);
-                if is_vertex[i] && front::front_distance(x, reach) <= radius {
+                if is_vertex[i] && !far[i] && front::front_distance(x, reach) <= radius {
                     is_tip[i] = true;
                 }
             }

@@ -330,6 +330,40 @@ pub fn segment_distance(x: &Point3<f64>, seg: &[Point3<f64>; 2]) -> f64 {
 }
 
 /// Distance from `x` to the nearest front segment (∞ without front).
+/// The bounding boxes of segments in an R-tree: whether any segment may
+/// come within a distance of a point, without measuring to each.
+pub struct SegmentBoxes {
+    tree: RTree<Rectangle<[f64; 3]>>,
+}
+
+impl SegmentBoxes {
+    pub fn new(segments: &[[Point3<f64>; 2]]) -> SegmentBoxes {
+        let boxes = segments
+            .iter()
+            .map(|s| Rectangle::from_corners(s[0].inf(&s[1]).into(), s[0].sup(&s[1]).into()))
+            .collect();
+        SegmentBoxes {
+            tree: RTree::bulk_load(boxes),
+        }
+    }
+
+    /// Whether a segment's box meets the cube of half-side `reach` about x
+    /// (`true` for an infinite reach).
+    pub fn may_reach(&self, x: &Point3<f64>, reach: f64) -> bool {
+        if !reach.is_finite() {
+            return true;
+        }
+        let near = AABB::from_corners(
+            [x.x - reach, x.y - reach, x.z - reach],
+            [x.x + reach, x.y + reach, x.z + reach],
+        );
+        self.tree
+            .locate_in_envelope_intersecting(&near)
+            .next()
+            .is_some()
+    }
+}
+
 pub fn front_distance(x: &Point3<f64>, front: &[[Point3<f64>; 2]]) -> f64 {
     front
         .iter()
