@@ -562,8 +562,43 @@ impl CutSurface for Everywhere<'_> {
 fn nodes_far_from_a_triangle_surface_take_stand_in_level_sets_that_change_nothing() {
     use xfem_cut::cut::Blending;
     use xfem_cut::model::same_element_cut;
-    let s = arc();
+    // A closed surface too: a tilted box around a column standing on the
+    // clamped face (the column is cut free but for its clamped foot).
+    let closed = {
+        let (c, t) = (Vector3::new(0.5, 0.5, 0.3), 0.2f64);
+        let r = nalgebra::Rotation3::from_axis_angle(&Vector3::z_axis(), t)
+            * nalgebra::Rotation3::from_axis_angle(&Vector3::x_axis(), 0.05);
+        let half = Vector3::new(0.22, 0.17, 0.5);
+        let v: Vec<Point3<f64>> = (0..8)
+            .map(|k| {
+                let s = Vector3::new(
+                    if k & 1 == 1 { 1.0 } else { -1.0 },
+                    if k & 2 == 2 { 1.0 } else { -1.0 },
+                    if k & 4 == 4 { 1.0 } else { -1.0 },
+                );
+                Point3::from(c + r * s.component_mul(&half))
+            })
+            .collect();
+        let mut tris = Vec::new();
+        for q in [
+            [0, 2, 3, 1],
+            [4, 5, 7, 6],
+            [0, 1, 5, 4],
+            [2, 6, 7, 3],
+            [0, 4, 6, 2],
+            [1, 3, 7, 5],
+        ] {
+            tris.push([q[0], q[1], q[2]]);
+            tris.push([q[0], q[2], q[3]]);
+        }
+        TriangleSurface::new(v, tris, std::path::Path::new("box")).unwrap()
+    };
+    let (s, all_closed) = (arc(), Everywhere(&closed));
     let all = Everywhere(&s);
+    let closed_pair = (
+        CutInput::extend(&closed, DEFAULT_SNAP),
+        CutInput::extend(&all_closed, DEFAULT_SNAP),
+    );
     for tet10 in [false, true] {
         let mesh = if tet10 {
             bar([6, 5, 16]).to_tet10()
@@ -583,12 +618,16 @@ fn nodes_far_from_a_triangle_surface_take_stand_in_level_sets_that_change_nothin
                 },
             ]
         };
-        for (skip, every) in inputs(&s).into_iter().zip(inputs(&all)) {
+        let pairs = inputs(&s).into_iter().zip(inputs(&all));
+        for (skip, every) in pairs.chain([closed_pair]) {
             let a = setup_cut(&mesh, &[skip]).unwrap();
             let b = setup_cut(&mesh, &[every]).unwrap();
             let label = format!(
-                "tet10 {tet10}, {:?}, radius {:?}, {:?}",
-                skip.front, skip.tip_radius, skip.blending
+                "tet10 {tet10}, {} boundary segments, {:?}, radius {:?}, {:?}",
+                skip.surface.boundary().len(),
+                skip.front,
+                skip.tip_radius,
+                skip.blending
             );
             // The nodes whose level sets the set-up reads: those of cut or
             // crossed elements and of elements holding enriched or tip nodes.
@@ -621,6 +660,7 @@ fn nodes_far_from_a_triangle_surface_take_stand_in_level_sets_that_change_nothin
                     "{label}: ψ at {i}"
                 );
             }
+            assert!(a.n_cut() > 0, "{label}: nothing cut");
             assert_eq!(a.enriched, b.enriched, "{label}");
             assert_eq!(a.tip, b.tip, "{label}");
             assert!(
