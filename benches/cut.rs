@@ -9,12 +9,13 @@ use nalgebra::{Point3, Vector3};
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 use xfem_cut::assembly::{equation_shapes, evaluate, Request, Rotations, Workspace};
-use xfem_cut::cut::{setup_cut, CutInput, CutSetup, PlanarPatch, DEFAULT_SNAP};
+use xfem_cut::cut::{setup_cut, CutInput, CutSetup, CutSurface, PlanarPatch, DEFAULT_SNAP};
 use xfem_cut::dynamics::{DynamicOptions, LinearSolver, Newmark, DEFAULT_LAGGED};
 use xfem_cut::mesh::TetMesh;
 use xfem_cut::model::{Formulation, Model};
 use xfem_cut::solve::{Cholesky, Parallelism};
 use xfem_cut::study::fixtures::{beam_mesh, seed_beam};
+use xfem_cut::surface::TriangleSurface;
 
 /// The allocator of the `xfem-cut` binary, so that these times are the CLI's.
 #[global_allocator]
@@ -271,5 +272,94 @@ fn tip_step(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(cut, precompute_split, cut_step, tip_step);
+/// A wavy incision of 7200 triangles (60 × 60 quads) from the face x = 0
+/// to a front at x = 0.015 across the beam's width near z = 0.1.
+fn wavy_incision() -> TriangleSurface {
+    let n = 60;
+    let mut vertices = Vec::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            let (s, t) = (i as f64 / n as f64, j as f64 / n as f64);
+            let z = 0.1
+                + 0.004
+                    * (std::f64::consts::TAU * s).sin()
+                    * (3.0 * std::f64::consts::PI * t).cos();
+            vertices.push(Point3::new(-0.005 + 0.02 * s, -0.005 + 0.07 * t, z));
+        }
+    }
+    let id = |i: usize, j: usize| j * (n + 1) + i;
+    let mut triangles = Vec::new();
+    for j in 0..n {
+        for i in 0..n {
+            triangles.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            triangles.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    TriangleSurface::new(vertices, triangles, std::path::Path::new("wavy")).unwrap()
+}
+
+/// The surface measuring its level sets at every node (no stand-ins).
+struct EveryNode<'a>(&'a TriangleSurface);
+
+impl CutSurface for EveryNode<'_> {
+    fn level_set(&self, x: &Point3<f64>) -> f64 {
+        self.0.level_set(x)
+    }
+    fn overlaps(&self, poly: &[Point3<f64>], reach: f64) -> bool {
+        self.0.overlaps(poly, reach)
+    }
+    fn contains(&self, x: &Point3<f64>, tol: f64) -> bool {
+        self.0.contains(x, tol)
+    }
+    fn boundary(&self) -> Vec<[Point3<f64>; 2]> {
+        self.0.boundary()
+    }
+    fn behind_front(&self, x: &Point3<f64>, front: &[[Point3<f64>; 2]]) -> bool {
+        self.0.behind_front(x, front)
+    }
+    fn level_set_behind(&self, x: &Point3<f64>, front: &[[Point3<f64>; 2]]) -> (f64, bool) {
+        self.0.level_set_behind(x, front)
+    }
+}
+
+/// A cut surface from 7200 triangles on 40k and 328k Tet4 (issue 11's front
+/// set-up against the precompute, ≤ 10 %): the cut set-up (tip front), the
+/// same with the level sets measured at every node (no stand-ins), and the
+/// rest of the precompute (mesh, element data + pattern, symbolic
+/// factorisation).
+fn surface_setup(c: &mut Criterion) {
+    let mut g = c.benchmark_group("surface");
+    g.sample_size(10);
+    let surface = wavy_incision();
+    for (label, div) in [("40k", [8, 16, 53]), ("328k", [16, 32, 107])] {
+        let mesh = beam_mesh(div, false);
+        let input = CutInput::tip(&surface, DEFAULT_SNAP, None);
+        let every = EveryNode(&surface);
+        let cut = setup_cut(&mesh, &[input]).unwrap();
+        assert!(
+            cut.n_tip() > 0 && cut.n_cut() > 0,
+            "the incision cuts and ends inside"
+        );
+        let m = model(mesh.clone(), Some(cut.clone()), Formulation::Linear);
+        let id = |stage: &str| BenchmarkId::new(format!("{stage}/tet4_7200triangles"), label);
+        g.bench_function(id("mesh"), |b| b.iter(|| black_box(beam_mesh(div, false))));
+        g.bench_function(id("cut-setup"), |b| {
+            b.iter(|| black_box(setup_cut(&mesh, &[input]).unwrap()))
+        });
+        g.bench_function(id("cut-setup-every-node"), |b| {
+            b.iter(|| {
+                black_box(setup_cut(&mesh, &[CutInput::tip(&every, DEFAULT_SNAP, None)]).unwrap())
+            })
+        });
+        g.bench_function(id("element-data"), |b| {
+            b.iter(|| black_box(model(mesh.clone(), Some(cut.clone()), Formulation::Linear)))
+        });
+        g.bench_function(id("symbolic"), |b| {
+            b.iter(|| black_box(Cholesky::new(&m.pattern).unwrap()))
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(cut, precompute_split, cut_step, tip_step, surface_setup);
 criterion_main!(cut);
