@@ -636,8 +636,6 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
     };
     // The front carried on outside the body: ψ and `tip_radius` measure to it.
     let front_reach = front.as_deref().map(|f| front::extend_front_exits(mesh, f));
-    // φ, and ψ from the unsnapped φ, the front segments and which side of
-    // the front the node's foot is on (tip mode only).
     // Nodes out of the surface's reach and the front's take stand-ins: φ = ψ
     // = the reach (+ side, ahead).
     let front_boxes = front_reach
@@ -654,6 +652,8 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
                 })
         })
         .collect();
+    // φ, and ψ from the unsnapped φ, the front segments and which side of
+    // the front the node's foot is on (tip mode only).
     let (mut phi, mut front_level): (Vec<f64>, Vec<f64>) = match &front {
         Some(front) => {
             let segments = front_reach.as_deref().unwrap_or_default();

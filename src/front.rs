@@ -329,7 +329,6 @@ pub fn segment_distance(x: &Point3<f64>, seg: &[Point3<f64>; 2]) -> f64 {
     (x - (seg[0] + d * t)).norm()
 }
 
-/// Distance from `x` to the nearest front segment (∞ without front).
 /// The bounding boxes of segments in an R-tree: whether any segment may
 /// come within a distance of a point, without measuring to each.
 pub struct SegmentBoxes {
@@ -364,6 +363,7 @@ impl SegmentBoxes {
     }
 }
 
+/// Distance from `x` to the nearest front segment (∞ without front).
 pub fn front_distance(x: &Point3<f64>, front: &[[Point3<f64>; 2]]) -> f64 {
     front
         .iter()
