@@ -273,6 +273,7 @@ impl DenseKernel<'_> {
     }
 
     /// Block (a, b) of the local stiffness.
+    #[inline(always)]
     fn block(&self, n: usize, a: usize, b: usize) -> Matrix3<f64> {
         Matrix3::from_fn(|i, j| self.stiffness[(3 * a + i) * n + 3 * b + j])
     }
@@ -302,8 +303,30 @@ impl DenseKernel<'_> {
     ///   dS = sym(−[ω_bk]× S + Rᵀ e_k ḡ_bᵀ), ω_bk = T_b e_k.
     ///
     /// For one point τ ≡ 0 and this is [`GroupKernel::exact_tangent_blocks`].
+    ///
+    /// Compiled for the widest SIMD the machine has (run-time dispatch; the
+    /// same operations in the same order on every path).
     #[allow(clippy::too_many_arguments)]
     pub fn exact_tangent_blocks(
+        &self,
+        rd: &RotationDerivative,
+        grads: &[Vector3<f64>],
+        u: &[f64],
+        y: &[f64],
+        h: &[f64],
+        p: &mut [Matrix3<f64>],
+        t: &mut [Matrix3<f64>],
+        add: impl FnMut(usize, usize, &Matrix3<f64>),
+    ) {
+        pulp::Arch::new().dispatch(
+            #[inline(always)]
+            || self.exact_tangent_blocks_here(rd, grads, u, y, h, p, t, add),
+        )
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn exact_tangent_blocks_here(
         &self,
         rd: &RotationDerivative,
         grads: &[Vector3<f64>],
