@@ -583,15 +583,9 @@ fn lift_faces_the_front_crosses(
 /// nor holds an enriched or tip node), which saves the nearest-triangle
 /// search and the distance to every front segment at most nodes of a
 /// large mesh.
-fn level_set_reach(mesh: &TetMesh, tip_radius: Option<f64>) -> Vec<f64> {
+/// `largest`: per node, the largest element size around it.
+fn level_set_reach(mesh: &TetMesh, largest: &[f64], tip_radius: Option<f64>) -> Vec<f64> {
     let n = mesh.n_nodes();
-    let mut largest = vec![0.0f64; n];
-    for e in 0..mesh.n_elements() {
-        let he = mesh.element_size(e);
-        for &i in mesh.element(e) {
-            largest[i] = largest[i].max(he);
-        }
-    }
     // The largest of `largest` over the nodes of the elements of each star.
     let mut h2 = vec![f64::NEG_INFINITY; n];
     for e in 0..mesh.n_elements() {
@@ -618,17 +612,32 @@ fn level_set_reach(mesh: &TetMesh, tip_radius: Option<f64>) -> Vec<f64> {
 fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSetup, CutError> {
     let (surface, snap) = (input.surface, input.snap);
     let n_nodes = mesh.n_nodes();
-    // Local size per node: the smallest longest-edge of its elements.
+    // Local size per node: the smallest longest-edge of its elements (and
+    // the largest, for the reach); each node's star as offsets into one list.
     let mut h = vec![f64::INFINITY; n_nodes];
-    let mut star: Vec<Vec<usize>> = vec![Vec::new(); n_nodes];
+    let mut largest = vec![0.0f64; n_nodes];
+    let mut star_start = vec![0usize; n_nodes + 1];
     for e in 0..mesh.n_elements() {
         let he = mesh.element_size(e);
         for &i in mesh.element(e) {
             h[i] = h[i].min(he);
-            star[i].push(e);
+            largest[i] = largest[i].max(he);
+            star_start[i + 1] += 1;
         }
     }
-    let reach = level_set_reach(mesh, input.tip_radius);
+    for i in 0..n_nodes {
+        star_start[i + 1] += star_start[i];
+    }
+    let mut star_list = vec![0usize; star_start[n_nodes]];
+    let mut next = star_start.clone();
+    for e in 0..mesh.n_elements() {
+        for &i in mesh.element(e) {
+            star_list[next[i]] = e;
+            next[i] += 1;
+        }
+    }
+    let star = |i: usize| &star_list[star_start[i]..star_start[i + 1]];
+    let reach = level_set_reach(mesh, &largest, input.tip_radius);
     let boundary = surface.boundary();
     let front = match input.front {
         FrontMode::Extend => None,
@@ -792,7 +801,7 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
     }
     for i in 0..n_nodes {
         if enrich[i]
-            && star[i]
+            && star(i)
                 .iter()
                 .any(|&e| crossed[e] && !matches!(elements[e], ElementCut::Cut { .. }))
         {
@@ -804,7 +813,7 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
             continue;
         }
         let (mut has_pos, mut has_neg, mut ok) = (false, false, true);
-        for &e in &star[i] {
+        for &e in star(i) {
             let v = mesh.vertices(e);
             has_pos |= v.iter().any(|&j| phi[j] > 0.0);
             has_neg |= v.iter().any(|&j| phi[j] < 0.0);
