@@ -639,12 +639,16 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
     let star = |i: usize| &star_list[star_start[i]..star_start[i + 1]];
     let reach = level_set_reach(mesh, &largest, input.tip_radius);
     let boundary = surface.boundary();
-    let front = match input.front {
-        FrontMode::Extend => None,
-        FrontMode::Tip => Some(front::front_segments(mesh, &boundary)),
-    };
+    // The elements' boxes, once for the front's segments and its ends.
+    let boxes = matches!(input.front, FrontMode::Tip).then(|| front::element_boxes(mesh));
+    let front = boxes
+        .as_deref()
+        .map(|b| front::front_segments_with(mesh, &boundary, b));
     // The front carried on outside the body: ψ and `tip_radius` measure to it.
-    let front_reach = front.as_deref().map(|f| front::extend_front_exits(mesh, f));
+    let front_reach = front
+        .as_deref()
+        .zip(boxes.as_deref())
+        .map(|(f, b)| front::extend_front_exits_with(mesh, f, b));
     // Nodes out of the surface's reach and the front's take stand-ins: φ = ψ
     // = the reach (+ side, ahead).
     let front_boxes = front_reach

@@ -99,7 +99,15 @@ pub fn branch_with_gradients(
 /// faces, e.g. a cut ending on a node line); segments on the body's outer
 /// faces or outside it are not front.
 pub fn front_segments(mesh: &TetMesh, boundary: &[[Point3<f64>; 2]]) -> Vec<[Point3<f64>; 2]> {
-    let boxes = element_boxes(mesh);
+    front_segments_with(mesh, boundary, &element_boxes(mesh))
+}
+
+/// [`front_segments`] with the elements' bounding boxes ([`element_boxes`]).
+pub fn front_segments_with(
+    mesh: &TetMesh,
+    boundary: &[[Point3<f64>; 2]],
+    boxes: &[(Point3<f64>, Point3<f64>)],
+) -> Vec<[Point3<f64>; 2]> {
     // The body's outer faces, in an R*-tree of their bounding boxes: a
     // segment piece on them is not front.
     let outer: Vec<[Point3<f64>; 3]> = mesh
@@ -130,7 +138,7 @@ pub fn front_segments(mesh: &TetMesh, boundary: &[[Point3<f64>; 2]]) -> Vec<[Poi
         .map(|seg| (seg[0].inf(&seg[1]), seg[0].sup(&seg[1])))
         .collect();
     let mut front = vec![false; boundary.len()];
-    for_each_box_meeting(&boxes, &spans, |e, k| {
+    for_each_box_meeting(boxes, &spans, |e, k| {
         if !front[k] {
             let (lo, hi) = boxes[e];
             let tol = 1e-9 * (hi - lo).norm();
@@ -212,7 +220,7 @@ fn for_each_box_meeting(
 }
 
 /// Each element's bounding box (lower, upper corner).
-fn element_boxes(mesh: &TetMesh) -> Vec<(Point3<f64>, Point3<f64>)> {
+pub fn element_boxes(mesh: &TetMesh) -> Vec<(Point3<f64>, Point3<f64>)> {
     (0..mesh.n_elements())
         .map(|e| {
             let p = mesh.vertex_points(e);
@@ -231,6 +239,15 @@ fn element_boxes(mesh: &TetMesh) -> Vec<(Point3<f64>, Point3<f64>)> {
 /// it (a segment that ends just outside would otherwise give the nodes
 /// near the body's face their distance to its end, not to its line).
 pub fn extend_front_exits(mesh: &TetMesh, front: &[[Point3<f64>; 2]]) -> Vec<[Point3<f64>; 2]> {
+    extend_front_exits_with(mesh, front, &element_boxes(mesh))
+}
+
+/// [`extend_front_exits`] with the elements' bounding boxes ([`element_boxes`]).
+pub fn extend_front_exits_with(
+    mesh: &TetMesh,
+    front: &[[Point3<f64>; 2]],
+    boxes: &[(Point3<f64>, Point3<f64>)],
+) -> Vec<[Point3<f64>; 2]> {
     let (lo, hi) = mesh.bounding_box();
     let diagonal = (hi - lo).norm();
     let step = 1e-6 * diagonal;
@@ -247,7 +264,7 @@ pub fn extend_front_exits(mesh: &TetMesh, front: &[[Point3<f64>; 2]]) -> Vec<[Po
         .collect();
     let points: Vec<_> = ends.iter().map(|x| (*x, *x)).collect();
     let mut in_body = vec![false; ends.len()];
-    for_each_box_meeting(&element_boxes(mesh), &points, |e, k| {
+    for_each_box_meeting(boxes, &points, |e, k| {
         if !in_body[k] {
             in_body[k] = barycentric(&mesh.vertex_points(e), &ends[k])
                 .is_some_and(|l| l.iter().all(|&v| v >= -1e-12));
