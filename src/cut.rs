@@ -229,6 +229,10 @@ pub struct CutSetup {
     /// ramp R = Σ_{k∈I} λ_k sums over (tip nodes not in I are the blending
     /// elements' other vertices). Empty for [`Blending::None`].
     pub ramp: Vec<bool>,
+    /// Nodes whose level sets were measured, and of how many (summed over
+    /// the cuts): the others lie beyond the surface's reach and took
+    /// stand-ins ([`level_set_reach`]).
+    pub measured: (usize, usize),
 }
 
 impl CutSetup {
@@ -494,6 +498,9 @@ fn merge(mesh: &TetMesh, setups: Vec<CutSetup>) -> Result<CutSetup, CutError> {
         tip,
         n_tip,
         ramp,
+        measured: setups
+            .iter()
+            .fold((0, 0), |(a, b), s| (a + s.measured.0, b + s.measured.1)),
     })
 }
 
@@ -979,6 +986,7 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
         tip,
         n_tip,
         ramp,
+        measured: (far.iter().filter(|&&f| !f).count(), n_nodes),
     })
 }
 

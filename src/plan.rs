@@ -26,6 +26,9 @@ pub struct Plan {
     /// Tip-enriched nodes (branch functions, 12 DOFs each).
     pub tip: usize,
     pub free: usize,
+    /// The cut set-up's nodes with measured level sets, of how many
+    /// ([`crate::cut::CutSetup::measured`]).
+    pub level_sets: (usize, usize),
     /// Seconds: selections, cut set-up, element data + pattern.
     pub times: [f64; 3],
 }
@@ -249,6 +252,7 @@ impl Plan {
             heaviside: model.cut.as_ref().map_or(0, |c| c.n_heaviside()),
             tip: model.cut.as_ref().map_or(0, |c| c.n_tip()),
             free: model.n_free,
+            level_sets: model.cut.as_ref().map_or((0, 0), |c| c.measured),
             times,
         }
     }
@@ -275,6 +279,14 @@ impl fmt::Display for Plan {
             f,
             "size: {} elements, {} nodes, {} DOFs ({} Heaviside-, {} tip-enriched nodes), {} free DOFs",
             self.elements, self.nodes, self.dofs, self.heaviside, self.tip, self.free
-        )
+        )?;
+        let (measured, of) = self.level_sets;
+        if measured < of {
+            write!(
+                f,
+                "; level sets measured at {measured} of {of} nodes (the others beyond the surface's reach)"
+            )?;
+        }
+        Ok(())
     }
 }

@@ -652,6 +652,13 @@ fn nodes_far_from_a_triangle_surface_take_stand_in_level_sets_that_change_nothin
                 .count();
             println!("{label}: {stand_ins} of {} nodes stand-ins", mesh.n_nodes());
             assert!(stand_ins >= 100, "{label}: {stand_ins} stand-ins");
+            // The set-up counts them (run prints the count).
+            assert_eq!(
+                a.measured,
+                (mesh.n_nodes() - stand_ins, mesh.n_nodes()),
+                "{label}"
+            );
+            assert_eq!(b.measured, (mesh.n_nodes(), mesh.n_nodes()), "{label}");
             for i in (0..mesh.n_nodes()).filter(|&i| read[i]) {
                 assert_eq!(a.phi[i], b.phi[i], "{label}: φ at node {i}");
                 assert_eq!(
