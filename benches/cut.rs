@@ -9,13 +9,13 @@ use nalgebra::{Point3, Vector3};
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 use xfem_cut::assembly::{equation_shapes, evaluate, Request, Rotations, Workspace};
-use xfem_cut::cut::{setup_cut, CutInput, CutSetup, CutSurface, PlanarPatch, DEFAULT_SNAP};
+use xfem_cut::cut::{setup_cut, CutInput, CutSetup, PlanarPatch, DEFAULT_SNAP};
 use xfem_cut::dynamics::{DynamicOptions, LinearSolver, Newmark, DEFAULT_LAGGED};
 use xfem_cut::mesh::TetMesh;
 use xfem_cut::model::{Formulation, Model};
 use xfem_cut::solve::{Cholesky, Parallelism};
 use xfem_cut::study::fixtures::{beam_mesh, seed_beam};
-use xfem_cut::surface::TriangleSurface;
+use xfem_cut::surface::{EveryNode, TriangleSurface};
 
 /// The allocator of the `xfem-cut` binary, so that these times are the CLI's.
 #[global_allocator]
@@ -296,30 +296,6 @@ fn wavy_incision() -> TriangleSurface {
         }
     }
     TriangleSurface::new(vertices, triangles, std::path::Path::new("wavy")).unwrap()
-}
-
-/// The surface measuring its level sets at every node (no stand-ins).
-struct EveryNode<'a>(&'a TriangleSurface);
-
-impl CutSurface for EveryNode<'_> {
-    fn level_set(&self, x: &Point3<f64>) -> f64 {
-        self.0.level_set(x)
-    }
-    fn overlaps(&self, poly: &[Point3<f64>], reach: f64) -> bool {
-        self.0.overlaps(poly, reach)
-    }
-    fn contains(&self, x: &Point3<f64>, tol: f64) -> bool {
-        self.0.contains(x, tol)
-    }
-    fn boundary(&self) -> Vec<[Point3<f64>; 2]> {
-        self.0.boundary()
-    }
-    fn behind_front(&self, x: &Point3<f64>, front: &[[Point3<f64>; 2]]) -> bool {
-        self.0.behind_front(x, front)
-    }
-    fn level_set_behind(&self, x: &Point3<f64>, front: &[[Point3<f64>; 2]]) -> (f64, bool) {
-        self.0.level_set_behind(x, front)
-    }
 }
 
 /// A cut surface from 7200 triangles on 40k and 328k Tet4 (issue 11's front

@@ -594,6 +594,32 @@ impl CutSurface for TriangleSurface {
     }
 }
 
+/// A triangle surface that measures its level sets at every node (the
+/// default [`CutSurface::may_reach`]): the set-up without stand-ins, to
+/// compare with (tests) and to time against (benches).
+pub struct EveryNode<'a>(pub &'a TriangleSurface);
+
+impl CutSurface for EveryNode<'_> {
+    fn level_set(&self, x: &Point3<f64>) -> f64 {
+        self.0.level_set(x)
+    }
+    fn overlaps(&self, poly: &[Point3<f64>], reach: f64) -> bool {
+        self.0.overlaps(poly, reach)
+    }
+    fn contains(&self, x: &Point3<f64>, tol: f64) -> bool {
+        self.0.contains(x, tol)
+    }
+    fn boundary(&self) -> Vec<[Point3<f64>; 2]> {
+        self.0.boundary()
+    }
+    fn behind_front(&self, x: &Point3<f64>, front: &[[Point3<f64>; 2]]) -> bool {
+        self.0.behind_front(x, front)
+    }
+    fn level_set_behind(&self, x: &Point3<f64>, front: &[[Point3<f64>; 2]]) -> (f64, bool) {
+        self.0.level_set_behind(x, front)
+    }
+}
+
 /// Whether the convex polygon `pts` (in (s, t)) overlaps the unit triangle
 /// (0,0), (1,0), (0,1) by more than a 1e-9 sliver: separating axes, as
 /// [`crate::cut::PlanarPatch`] does for its square.

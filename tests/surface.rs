@@ -13,7 +13,7 @@ use xfem_cut::dynamics::{DynamicOptions, Newmark};
 use xfem_cut::locate::Locator;
 use xfem_cut::model::{Formulation, Model};
 use xfem_cut::solve::Cholesky;
-use xfem_cut::surface::{ascii_stl, TriangleSurface};
+use xfem_cut::surface::{ascii_stl, EveryNode, TriangleSurface};
 
 /// The patch (f32-exact corners, as STL stores them): z = 1.15625 between
 /// node layers, front x = 0.625 inside elements of a 3-division bar.
@@ -533,31 +533,6 @@ fn an_oblique_patch_entering_through_a_face_as_triangles_equals_it_running_on_ou
     }
 }
 
-/// A triangle surface that computes its level sets at every node (the
-/// default `may_reach`), to compare with the set-up that skips far nodes.
-struct Everywhere<'a>(&'a TriangleSurface);
-
-impl CutSurface for Everywhere<'_> {
-    fn level_set(&self, x: &Point3<f64>) -> f64 {
-        self.0.level_set(x)
-    }
-    fn overlaps(&self, poly: &[Point3<f64>], reach: f64) -> bool {
-        self.0.overlaps(poly, reach)
-    }
-    fn contains(&self, x: &Point3<f64>, tol: f64) -> bool {
-        self.0.contains(x, tol)
-    }
-    fn boundary(&self) -> Vec<[Point3<f64>; 2]> {
-        self.0.boundary()
-    }
-    fn behind_front(&self, x: &Point3<f64>, front: &[[Point3<f64>; 2]]) -> bool {
-        self.0.behind_front(x, front)
-    }
-    fn level_set_behind(&self, x: &Point3<f64>, front: &[[Point3<f64>; 2]]) -> (f64, bool) {
-        self.0.level_set_behind(x, front)
-    }
-}
-
 #[test]
 fn nodes_far_from_a_triangle_surface_take_stand_in_level_sets_that_change_nothing() {
     use xfem_cut::cut::Blending;
@@ -593,8 +568,8 @@ fn nodes_far_from_a_triangle_surface_take_stand_in_level_sets_that_change_nothin
         }
         TriangleSurface::new(v, tris, std::path::Path::new("box")).unwrap()
     };
-    let (s, all_closed) = (arc(), Everywhere(&closed));
-    let all = Everywhere(&s);
+    let (s, all_closed) = (arc(), EveryNode(&closed));
+    let all = EveryNode(&s);
     let closed_pair = (
         CutInput::extend(&closed, DEFAULT_SNAP),
         CutInput::extend(&all_closed, DEFAULT_SNAP),
