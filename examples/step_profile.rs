@@ -17,9 +17,10 @@
 //! k = 5, 20).
 //!
 //! `cargo run --release --example step_profile` (all three), or
-//! `-- 6 12 24 [tet10] [tip]` for one beam (`tip`: the seed's cut shortened
-//! to x = 0.0137, its front inside elements and tip-enriched, as in the
-//! `tip` group of benches/cut.rs).
+//! `-- 6 12 24 [tet10] [tip|extend]` for one beam (`tip`: the seed's cut
+//! shortened to x = 0.0137, its front inside elements and tip-enriched, as
+//! in the `tip` group of benches/cut.rs; `extend`: the same cut extended to
+//! the faces of its front elements, what that group compares it with).
 use nalgebra::{Point3, Vector3};
 use std::hint::black_box;
 use std::time::Instant;
@@ -50,15 +51,20 @@ fn median_ms(mut f: impl FnMut()) -> f64 {
     times[reps / 2]
 }
 
-fn profile(div: [usize; 3], tet10: bool, tip: bool) {
+fn profile(div: [usize; 3], tet10: bool, front: Option<&str>) {
     let mesh = beam_mesh(div, tet10);
-    let cut = tip.then(|| {
+    let cut = front.map(|front| {
         let patch = PlanarPatch {
             origin: Point3::new(0.0, 0.0, 0.1),
             u: Vector3::new(0.0137, 0.0, 0.0),
             v: Vector3::new(0.0, 0.06, 0.0),
         };
-        setup_cut(&mesh, &[CutInput::tip(&patch, DEFAULT_SNAP, None)]).unwrap()
+        let input = if front == "extend" {
+            CutInput::extend(&patch, DEFAULT_SNAP)
+        } else {
+            CutInput::tip(&patch, DEFAULT_SNAP, None)
+        };
+        setup_cut(&mesh, &[input]).unwrap()
     });
     let n_tip = cut.as_ref().map_or(0, |c| c.n_tip());
     let m: Model = seed_beam(mesh, Formulation::Corotational, cut).unwrap();
@@ -242,11 +248,12 @@ fn main() {
     if args.len() >= 3 {
         let div = [0, 1, 2].map(|i| args[i].parse().expect("divisions"));
         let flag = |f: &str| args[3..].iter().any(|a| a == f);
-        profile(div, flag("tet10"), flag("tip"));
+        let front = ["tip", "extend"].into_iter().find(|f| flag(f));
+        profile(div, flag("tet10"), front);
         return;
     }
     println!("seed beam, corotational, exact tangent, lumped mass, one thread (medians; the machine may be shared)");
-    profile([3, 6, 10], false, false);
-    profile([6, 12, 24], false, false);
-    profile([3, 6, 10], true, false);
+    profile([3, 6, 10], false, None);
+    profile([6, 12, 24], false, None);
+    profile([3, 6, 10], true, None);
 }
