@@ -245,7 +245,8 @@ fn run() -> Result<()> {
         } => {
             use xfem_cut::study::exact;
             let csv = csv.unwrap_or_else(|| PathBuf::from("reports").join(exact::CSV));
-            let variants = exact::study_variants();
+            let mut variants = exact::study_variants();
+            variants.extend(exact::radius_sweep());
             let hash = exact::inputs_hash(&variants)?;
             let hash_path = PathBuf::from(format!("{}.hash", csv.display()));
             if csv.exists() && std::fs::read_to_string(&hash_path).is_ok_and(|h| h.trim() == hash) {

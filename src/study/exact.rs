@@ -379,6 +379,25 @@ impl WilliamsFront {
         (self.n.dot(&(x - self.c)), self.m.dot(&(x - self.c)))
     }
 
+    /// The length of the front inside the unit box: its line c + s t
+    /// clipped to [0, 1]³ (what the tip DOFs per length of front divide by).
+    pub fn length_in_unit_box(&self) -> f64 {
+        let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
+        for k in 0..3 {
+            let (c, t) = (self.c[k], self.t[k]);
+            if t.abs() < 1e-15 {
+                if !(0.0..=1.0).contains(&c) {
+                    return 0.0;
+                }
+                continue;
+            }
+            let (a, b) = ((0.0 - c) / t, (1.0 - c) / t);
+            lo = lo.max(a.min(b));
+            hi = hi.min(a.max(b));
+        }
+        (hi - lo).max(0.0)
+    }
+
     /// Exact displacement and gradient at x seen from `side` (0: from φ's sign).
     pub fn exact(&self, x: &Point3<f64>, side: i8) -> (Vector3<f64>, Matrix3<f64>) {
         let (f, g) = self.level_sets(x);
@@ -766,6 +785,100 @@ pub fn study_variants() -> Vec<Variant> {
             },
         )
         .collect()
+}
+
+/// The prefix of the [`radius_sweep`] variants' names.
+pub const SWEEP: &str = "tip_radius sweep";
+
+/// What `tip_radius` buys: the near-front case on one mesh per element
+/// (Tet4 n = 16, Tet10 n = 6), the front extended (no tip DOFs), tip-enriched
+/// topologically, and geometrically with R from under an element to most of
+/// the box. `xfem-cut converge --exact` runs them after [`study_variants`]
+/// (one level each: no orders); the report tabulates the tip DOFs per unit
+/// length of front against R with the errors and times they buy.
+pub fn radius_sweep() -> Vec<Variant> {
+    let mut out = Vec::new();
+    for (kind, n) in [(ElementKind::Tet4, 16), (ElementKind::Tet10, 6)] {
+        let mut add = |name: &'static str, front: FrontMode, tip_radius: Option<f64>| {
+            out.push(Variant {
+                case: Case::NearFront,
+                name,
+                kind,
+                front,
+                tip_radius,
+                jitter: 0.0,
+                precut: false,
+                divisions: vec![n],
+                theory: (None, None),
+            })
+        };
+        add("tip_radius sweep: extend", FrontMode::Extend, None);
+        add("tip_radius sweep: topological", FrontMode::Tip, None);
+        add("tip_radius sweep: R=0.05", FrontMode::Tip, Some(0.05));
+        add("tip_radius sweep: R=0.1", FrontMode::Tip, Some(0.1));
+        add("tip_radius sweep: R=0.2", FrontMode::Tip, Some(0.2));
+        add("tip_radius sweep: R=0.3", FrontMode::Tip, Some(0.3));
+        add("tip_radius sweep: R=0.4", FrontMode::Tip, Some(0.4));
+    }
+    out
+}
+
+/// What the [`radius_sweep`]'s rows (in its order: extend, topological, R
+/// ascending, per element) must show: tip enrichment at least halves the
+/// extended front's L2 error; a larger R never enriches fewer nodes, and
+/// where it enriches more, both errors fall; R = 0.4 enriches more nodes
+/// than the front elements hold. The first failure, in words.
+pub fn check_radius_sweep(rows: &[&Row]) -> Result<(), String> {
+    let variants = radius_sweep();
+    for kind in [ElementKind::Tet4, ElementKind::Tet10] {
+        let names: Vec<&str> = variants
+            .iter()
+            .filter(|v| v.kind == kind)
+            .map(|v| v.name)
+            .collect();
+        let k: Vec<&Row> = names
+            .iter()
+            .map(|n| {
+                rows.iter()
+                    .copied()
+                    .find(|r| r.element == kind.name() && r.variant == *n)
+                    .ok_or_else(|| format!("{} {n}: no row", kind.name()))
+            })
+            .collect::<Result<_, _>>()?;
+        let kind = kind.name();
+        if k[0].tip != 0 {
+            return Err(format!("{kind} extend: {} tip nodes", k[0].tip));
+        }
+        if k[1].l2 * 2.0 >= k[0].l2 {
+            return Err(format!(
+                "{kind}: topological tip L2 {:.3e} not under half of extend's {:.3e}",
+                k[1].l2, k[0].l2
+            ));
+        }
+        for w in k[1..].windows(2) {
+            let (a, b) = (w[0], w[1]);
+            if b.tip < a.tip || b.dofs < a.dofs {
+                return Err(format!(
+                    "{kind} {}: fewer tip nodes or DOFs than {}",
+                    b.variant, a.variant
+                ));
+            }
+            if b.tip > a.tip && !(b.l2 < a.l2 && b.energy < a.energy) {
+                return Err(format!(
+                    "{kind} {}: L2 {:.3e}, energy {:.3e} not below {}'s {:.3e}, {:.3e}",
+                    b.variant, b.l2, b.energy, a.variant, a.l2, a.energy
+                ));
+            }
+        }
+        let (top, last) = (k[1], k[k.len() - 1]);
+        if last.tip <= top.tip {
+            return Err(format!(
+                "{kind} {}: no more tip nodes than topological",
+                last.variant
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Where the study writes its rows, relative to `reports/`.

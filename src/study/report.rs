@@ -761,7 +761,10 @@ fn exact_section(reports: &Path) -> Result<String, StudyError> {
         return Ok(md);
     }
     let rows = exact::read_csv(&path)?;
-    let groups = exact::by_variant(&rows);
+    let groups: Vec<Vec<&exact::Row>> = exact::by_variant(&rows)
+        .into_iter()
+        .filter(|g| !g[0].variant.starts_with(exact::SWEEP))
+        .collect();
     let order_text = |p: Option<f64>| p.map_or("–".into(), |p| format!("{p:.2}"));
     let theory_text = |t: f64| {
         if t.is_nan() {
@@ -857,6 +860,90 @@ fn exact_section(reports: &Path) -> Result<String, StudyError> {
         }
         md.push('\n');
     }
+    let sweep: Vec<&exact::Row> = rows
+        .iter()
+        .filter(|r| r.variant.starts_with(exact::SWEEP))
+        .collect();
+    if !sweep.is_empty() {
+        md.push_str(&radius_sweep_section(reports, &sweep)?);
+    }
+    Ok(md)
+}
+
+/// What `tip_radius` buys ([`exact::radius_sweep`]): per element, the tip
+/// nodes and DOFs (per unit length of front) and the DOFs added to the
+/// extended front against the errors and the solve time, and a plot of the
+/// errors against the free DOFs.
+fn radius_sweep_section(reports: &Path, rows: &[&exact::Row]) -> Result<String, StudyError> {
+    let length = exact::WilliamsFront::new().length_in_unit_box();
+    let label = |r: &exact::Row| {
+        r.variant
+            .strip_prefix(exact::SWEEP)
+            .map_or(r.variant.as_str(), |v| v.trim_start_matches(": "))
+            .to_string()
+    };
+    let mut md = format!("### What `tip_radius` buys
+
+The `near_front` case on one mesh per element (Tet4 n = 16, h = 0.0625; Tet10 n = 6, h = 0.167), its front ({length:.3} long in the box) extended to the element faces, tip-enriched topologically (the nodes of front elements, `front = \"tip\"`), and geometrically with `tip_radius` R (every node within R of the front). Tip DOFs: 3 components × 4 branch functions per tip node, per unit length of front; DOFs added: the free DOFs over the extended front's. Time: the whole solve (set-up, element data, factorisation), one thread. Written by `xfem-cut converge --exact` (`exact::radius_sweep`).\n\n");
+    let svg = "exact_tip_radius_error_dofs.svg";
+    let mut lines = Vec::new();
+    for (i, kind) in ["tet4", "tet10"].into_iter().enumerate() {
+        let mut pts: Vec<&&exact::Row> = rows.iter().filter(|r| r.element == kind).collect();
+        if pts.is_empty() {
+            continue;
+        }
+        pts.sort_by_key(|r| r.dofs);
+        let color = COLORS[i % COLORS.len()];
+        lines.push(Line {
+            label: format!("{kind} L2 (extend, topological, R = 0.05 … 0.4)"),
+            points: pts.iter().map(|r| (r.dofs as f64, r.l2)).collect(),
+            color,
+            thick: true,
+        });
+        lines.push(Line {
+            label: format!("{kind} energy"),
+            points: pts.iter().map(|r| (r.dofs as f64, r.energy)).collect(),
+            color,
+            thick: false,
+        });
+    }
+    draw_lines(
+        &reports.join(svg),
+        "near_front: error vs DOFs as tip_radius grows (thick: L2, thin: energy)",
+        "free DOFs",
+        "relative error",
+        &lines,
+        SeriesLabelPosition::UpperRight,
+    )?;
+    let _ = writeln!(
+        md,
+        "![near_front errors against DOFs as tip_radius grows]({svg})\n"
+    );
+    let _ = writeln!(md, "| element | front | tip nodes | tip DOFs | tip DOFs per unit length of front | free DOFs | DOFs added to `extend` | L2 error | energy error | time (s) |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
+    for kind in ["tet4", "tet10"] {
+        let base = rows
+            .iter()
+            .find(|r| r.element == kind && label(r) == "extend")
+            .map(|r| r.dofs);
+        for r in rows.iter().filter(|r| r.element == kind) {
+            let tip_dofs = 3 * crate::front::N_BRANCH * r.tip;
+            let added = base.map_or("–".to_string(), |b| {
+                format!("{}", r.dofs as i64 - b as i64)
+            });
+            let _ = writeln!(
+                md,
+                "| {kind} | {} | {} | {tip_dofs} | {:.0} | {} | {added} | {:.3e} | {:.3e} | {:.2} |",
+                label(r),
+                r.tip,
+                tip_dofs as f64 / length,
+                r.dofs,
+                r.l2,
+                r.energy,
+                r.seconds
+            );
+        }
+    }
+    md.push('\n');
     Ok(md)
 }
 
@@ -1421,8 +1508,17 @@ mod tests {
     fn the_committed_exact_study_meets_its_orders_and_the_report_shows_it() {
         let reports = Path::new(env!("CARGO_MANIFEST_DIR")).join("reports");
         let rows = exact::read_csv(&reports.join(exact::CSV)).unwrap();
-        let groups = exact::by_variant(&rows);
+        let (groups, sweep): (Vec<_>, Vec<_>) = exact::by_variant(&rows)
+            .into_iter()
+            .partition(|g| !g[0].variant.starts_with(exact::SWEEP));
         assert_eq!(groups.len(), exact::study_variants().len());
+        // The tip_radius sweep: one row per variant, each there.
+        assert_eq!(sweep.len(), exact::radius_sweep().len());
+        assert!(sweep.iter().all(|g| g.len() == 1));
+        let sweep: Vec<&exact::Row> = sweep.iter().map(|g| g[0]).collect();
+        if let Err(e) = exact::check_radius_sweep(&sweep) {
+            panic!("{e}");
+        }
         for g in &groups {
             let (l2, en) = exact::last_orders(g).unwrap();
             let r = g[0];
@@ -1446,8 +1542,27 @@ mod tests {
             assert!(md.contains(&format!("]({svg})")), "{case}");
             assert!(std::fs::metadata(dir.path().join(&svg)).unwrap().len() > 5_000);
         }
+        assert!(md.contains("](exact_tip_radius_error_dofs.svg)"));
+        assert!(
+            std::fs::metadata(dir.path().join("exact_tip_radius_error_dofs.svg"))
+                .unwrap()
+                .len()
+                > 5_000
+        );
+        // One table row per sweep variant, with its tip DOFs per unit length.
+        let length = exact::WilliamsFront::new().length_in_unit_box();
+        for r in &sweep {
+            let per_length = (12 * r.tip) as f64 / length;
+            assert!(
+                md.contains(&format!("| {} | {} | {per_length:.0} |", r.tip, 12 * r.tip)),
+                "{} {}",
+                r.variant,
+                r.element
+            );
+        }
         let readme = std::fs::read_to_string(reports.join("README.md")).unwrap();
         assert!(readme.contains("### `through_cut`") && readme.contains("### `near_front`"));
+        assert!(readme.contains("### What `tip_radius` buys"));
     }
 
     #[test]
