@@ -540,16 +540,33 @@ impl CutSurface for TriangleSurface {
         // Candidates within the polygon's size and its reach: a section of
         // the interpolated, snapped level set can lie a snap off the
         // triangles, more than a small polygon's size.
-        let pad = (hi - lo).norm() + reach + 1e-12 * (hi.coords.norm() + 1.0);
-        self.near(lo, hi, pad).any(|tri| {
+        let round_off = 1e-12 * (hi.coords.norm() + 1.0);
+        let pad = (hi - lo).norm() + reach + round_off;
+        // (A section has 3 or 4 corners: its plane coordinates on the stack.)
+        let mut stack = [(0.0, 0.0); 8];
+        let mut heap = Vec::new();
+        let pts: &mut [(f64, f64)] = if poly.len() <= stack.len() {
+            &mut stack[..poly.len()]
+        } else {
+            heap.resize(poly.len(), (0.0, 0.0));
+            &mut heap
+        };
+        let mut overlaps = |tri: &Tri| {
             let a = tri.p[0];
             let (e1, e2) = (tri.p[1] - a, tri.p[2] - a);
-            let pts: Vec<(f64, f64)> = poly
-                .iter()
-                .map(|x| plane_coordinates(&a, &e1, &e2, x))
-                .collect();
-            convex_overlaps_unit_triangle(&pts)
-        })
+            for (q, x) in pts.iter_mut().zip(poly) {
+                *q = plane_coordinates(&a, &e1, &e2, x);
+            }
+            convex_overlaps_unit_triangle(pts)
+        };
+        // The triangles meeting the section's own box first: where the
+        // section lies on the surface one of them overlaps it, and the
+        // padded query (a superset, so the same answer) runs only where none
+        // does. (The padded box of a 4 mm section of a 7200-triangle incision
+        // holds hundreds of triangles, tested in the tree's order: a quarter
+        // of the cut set-up on 40k Tet4.)
+        self.near(lo, hi, reach + round_off).any(&mut overlaps)
+            || self.near(lo, hi, pad).any(overlaps)
     }
 
     fn contains(&self, x: &Point3<f64>, tol: f64) -> bool {
@@ -633,23 +650,26 @@ fn convex_overlaps_unit_triangle(pts: &[(f64, f64)]) -> bool {
                 (l.min(v), h.max(v))
             })
     };
-    let mut axes: Vec<(f64, f64)> = vec![(1.0, 0.0), (0.0, 1.0), (1.0, 1.0)];
+    let separates = |axis: (f64, f64)| {
+        let (pmin, pmax) = span(axis, pts);
+        let (qmin, qmax) = span(axis, &tri);
+        let scale = (axis.0.abs() + axis.1.abs()) * tol;
+        pmax <= qmin + scale || qmax <= pmin + scale
+    };
+    if [(1.0, 0.0), (0.0, 1.0), (1.0, 1.0)]
+        .into_iter()
+        .any(separates)
+    {
+        return false;
+    }
     let n = pts.len();
     if n >= 2 {
         for i in 0..n {
             let (a, b) = (pts[i], pts[(i + 1) % n]);
             let axis = (-(b.1 - a.1), b.0 - a.0);
-            if axis.0 != 0.0 || axis.1 != 0.0 {
-                axes.push(axis);
+            if (axis.0 != 0.0 || axis.1 != 0.0) && separates(axis) {
+                return false;
             }
-        }
-    }
-    for axis in axes {
-        let (pmin, pmax) = span(axis, pts);
-        let (qmin, qmax) = span(axis, &tri);
-        let scale = (axis.0.abs() + axis.1.abs()) * tol;
-        if pmax <= qmin + scale || qmax <= pmin + scale {
-            return false;
         }
     }
     true
