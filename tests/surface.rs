@@ -102,7 +102,10 @@ fn a_planar_patch_written_as_triangles_equals_the_patch() {
             if s.n_triangles() == 2 { 4 } else { 16 }
         );
         let setup = setup_cut(&mesh, &[CutInput::extend(&s, DEFAULT_SNAP)]).unwrap();
-        let phi = setup
+        // φ at every node (the set-up's stand-ins beyond the surface's reach
+        // aside: tests/surface.rs nodes_far_from_a_triangle_surface_…).
+        let every = setup_cut(&mesh, &[CutInput::extend(&EveryNode(&s), DEFAULT_SNAP)]).unwrap();
+        let phi = every
             .phi
             .iter()
             .zip(&reference.phi)
@@ -284,9 +287,11 @@ fn a_skewed_patch_with_front_corners_in_the_body_as_triangles_equals_the_patch()
         std::fs::write(&file, ascii_stl(&v, &tris)).unwrap();
         let s = TriangleSurface::read(&file).unwrap();
         let b = setup_cut(&mesh, &[CutInput::tip(&s, DEFAULT_SNAP, None)]).unwrap();
-        // ψ at every node: the same magnitude and sign, to round-off of the
-        // body's size (ψ = ∓√(d² − φ²) cancels near the plane's line).
-        let flipped = (a.front_level.iter().zip(&b.front_level))
+        // ψ at every node (measured at all, no stand-ins): the same magnitude
+        // and sign, to round-off of the body's size (ψ = ∓√(d² − φ²) cancels
+        // near the plane's line).
+        let every = setup_cut(&mesh, &[CutInput::tip(&EveryNode(&s), DEFAULT_SNAP, None)]).unwrap();
+        let flipped = (a.front_level.iter().zip(&every.front_level))
             .filter(|(x, y)| (*x - *y).abs() > 1e-12 * 0.21)
             .count();
         assert_eq!(flipped, 0, "{n} × {n} quads: nodes whose ψ differs");
