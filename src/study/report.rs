@@ -882,9 +882,7 @@ fn radius_sweep_section(reports: &Path, rows: &[&exact::Row]) -> Result<String, 
             .map_or(r.variant.as_str(), |v| v.trim_start_matches(": "))
             .to_string()
     };
-    let mut md = format!("### What `tip_radius` buys
-
-The `near_front` case on one mesh per element (Tet4 n = 16, h = 0.0625; Tet10 n = 6, h = 0.167), its front ({length:.3} long in the box) extended to the element faces, tip-enriched topologically (the nodes of front elements, `front = \"tip\"`), and geometrically with `tip_radius` R (every node within R of the front). Tip DOFs: 3 components × 4 branch functions per tip node (those of nodes on the box's boundary take the exact field's values, not free), and per unit length of front; DOFs added: the free DOFs over the extended front's (tip nodes carry no Heaviside DOFs). Time: the whole solve (set-up, element data, factorisation), one thread. Written by `xfem-cut converge --exact` (`exact::radius_sweep`).\n\n");
+    let mut md = format!("### What `tip_radius` buys\n\nThe `near_front` case on one mesh per element (Tet4 n = 16, h = 0.0625; Tet10 n = 6, h = 0.167), its front ({length:.3} long in the box) extended to the element faces, tip-enriched topologically (the nodes of front elements, `front = \"tip\"`), and geometrically with `tip_radius` R (every node within R of the front). Tip DOFs: 3 components × 4 branch functions per tip node (those of nodes on the box's boundary take the exact field's values, not free), and per unit length of front; DOFs added: the free DOFs over the extended front's (tip nodes carry no Heaviside DOFs). Time: the whole solve (set-up, element data, factorisation), one thread. Written by `xfem-cut converge --exact` (`exact::radius_sweep`).\n\n");
     let svg = "exact_tip_radius_error_dofs.svg";
     let mut lines = Vec::new();
     for (i, kind) in ["tet4", "tet10"].into_iter().enumerate() {
