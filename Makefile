@@ -42,7 +42,8 @@ STRESS_CSV := reports/data/stress.csv
 # Code verification (exact solutions, no references needed): re-run when the binary changed;
 # `converge --exact` itself skips a run whose inputs hash (binary + variants) is unchanged.
 EXACT_CSV := reports/data/exact.csv
-# A blade sweeping the seed's cut: step time against simulated time, events marked (a second).
+# A blade sweeping the seed's cut: step time against simulated time, events marked; the front
+# extended and tip-enriched, linear and corotational (seconds).
 SWEEP_CSV := reports/data/sweep_series.csv
 
 # The main job: references, the convergence studies, the benches, the report. Untimed stages run
@@ -83,6 +84,9 @@ $(STRESS_CSV): target/release/xfem-cut
 
 $(SWEEP_CSV): target/release/xfem-cut examples/sweep_series.rs
 	$(CARGO) run --release --example sweep_series -- --out reports
+	$(CARGO) run --release --example sweep_series -- corotational --out reports
+	$(CARGO) run --release --example sweep_series -- tip --out reports
+	$(CARGO) run --release --example sweep_series -- corotational tip --out reports
 
 bench-report: build
 	$(CARGO) bench --bench step --bench cut --bench blade -- --warm-up-time 1 --measurement-time 3

@@ -1,14 +1,19 @@
 //! The cost of a sweep as a time series: a blade opens the seed's cut during
-//! [0.1, 0.6] s on the beam; prints CSV `time,step_seconds,event,event_seconds`
-//! (event: a cut event followed the step; event_seconds its own time) and
-//! the sweep's summary on stderr; with `--out DIR` also writes
-//! `DIR/data/sweep_series.csv` and `DIR/sweep_series.svg` ([`xfem_cut::study::sweep`]),
-//! and the medians of a step between events and of an event with the step
-//! after it on stderr. `refactorise` solves the linear
-//! steps after events by refactorisation instead of the default bordered
-//! solve on the last factor; `border K` sets the border limit.
-//! `cargo run --release --example sweep_series -- [NX NY NZ] [linear|corotational] [tet10] [refactorise | border K] [--out reports]`
-use xfem_cut::blade::run_dynamic;
+//! [0.1, 0.6] s on the beam (uncut before it); prints CSV
+//! `time,step_seconds,event,event_seconds` (event: a cut event followed the
+//! step; event_seconds its own time) and the sweep's summary on stderr,
+//! with its phases (`study::sweep::phases`: the uncut step before the
+//! blade enters, the mean step of the sweep with its events, the step
+//! after); with `--out DIR` also writes `DIR/data/STEM.csv` and
+//! `DIR/STEM.svg` ([`xfem_cut::study::sweep`]), STEM `sweep_series` with
+//! `_tip`, `_corotational`, `_tet10` appended as they apply. The front is
+//! extended through the elements it is in, or with `tip` tip-enriched (the
+//! default of a case file). `refactorise` solves the linear steps after
+//! events by refactorisation instead of the default bordered solve on the
+//! last factor; `border K` sets the border limit.
+//! `cargo run --release --example sweep_series -- [NX NY NZ] [linear|corotational] [tet10] [tip] [refactorise | border K] [--out reports]`
+use xfem_cut::blade::{run_dynamic, CutSet};
+use xfem_cut::cut::FrontMode;
 use xfem_cut::dynamics::{DynamicOptions, EventSolve, DEFAULT_EVENT_SOLVE};
 use xfem_cut::model::Formulation;
 use xfem_cut::study::fixtures::{beam_mesh, seed_beam, seed_blade};
@@ -46,7 +51,15 @@ fn main() {
         .and_then(|k| args.get(k + 1))
         .map(std::path::PathBuf::from);
     let mesh = beam_mesh(div, tet10);
-    let cuts = seed_blade(0.1, 0.6);
+    let tip = args.iter().any(|a| a == "tip");
+    let cuts = if tip {
+        CutSet {
+            front: FrontMode::Tip,
+            ..seed_blade(0.1, 0.6)
+        }
+    } else {
+        seed_blade(0.1, 0.6)
+    };
     let build = |cut| seed_beam(mesh.clone(), formulation, cut);
     let opts = DynamicOptions {
         dt: 0.01,
@@ -87,6 +100,18 @@ fn main() {
         mean(&after),
         mean(&sweep_steps) / mean(&after)
     );
+    let p = sweep::phases(&rows, 0.1, 0.6);
+    eprintln!(
+        "phases: uncut step {:.4} ms | sweep step with its events {:.4} ms ({:.2}x) | event {:.4} ms ({:.2}x the uncut step), with the step after {:.4} ms | step after the sweep {:.4} ms ({:.2}x)",
+        p.uncut_step * 1e3,
+        p.sweep_step * 1e3,
+        p.sweep_step / p.uncut_step,
+        p.event * 1e3,
+        p.event / p.uncut_step,
+        p.event_and_step * 1e3,
+        p.after_step * 1e3,
+        p.after_step / p.uncut_step
+    );
     let median = |mut v: Vec<f64>| {
         v.sort_by(f64::total_cmp);
         v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
@@ -119,11 +144,22 @@ fn main() {
     }
     if let Some(dir) = out {
         std::fs::create_dir_all(dir.join("data")).unwrap();
-        sweep::write_csv(&dir.join("data/sweep_series.csv"), &rows).unwrap();
-        let title = format!(
-            "Sweep cost: {} {kind} {formulation:?}, blade during [0.1, 0.6] s",
-            mesh.n_elements()
+        let stem = format!(
+            "sweep_series{}{}{}",
+            if tip { "_tip" } else { "" },
+            if formulation == Formulation::Corotational {
+                "_corotational"
+            } else {
+                ""
+            },
+            if tet10 { "_tet10" } else { "" }
         );
-        sweep::plot(&dir.join("sweep_series.svg"), &title, &rows).unwrap();
+        sweep::write_csv(&dir.join(format!("data/{stem}.csv")), &rows).unwrap();
+        let title = format!(
+            "Sweep cost: {} {kind} {formulation:?}, {} front, blade during [0.1, 0.6] s",
+            mesh.n_elements(),
+            if tip { "tip" } else { "extended" }
+        );
+        sweep::plot(&dir.join(format!("{stem}.svg")), &title, &rows).unwrap();
     }
 }

@@ -746,7 +746,80 @@ fn sweep_section(reports: &Path) -> Result<Option<String>, StudyError> {
         event * 1e3,
         event / plain
     );
+    md.push_str(&sweep_phases(reports, &rows)?);
     Ok(Some(md))
+}
+
+/// The sweep series of `examples/sweep_series.rs` the report knows: file
+/// stem (in `data/`), front, formulation.
+const SWEEP_SERIES: [(&str, &str, &str); 4] = [
+    ("sweep_series", "extended", "linear"),
+    ("sweep_series_corotational", "extended", "corotational"),
+    ("sweep_series_tip", "tip", "linear"),
+    ("sweep_series_tip_corotational", "tip", "corotational"),
+];
+
+/// Each sweep series present (the first, `rows`, read already) split into
+/// its phases against the same run's uncut steps ([`crate::study::sweep::phases`]),
+/// and a plot of each series but the first (drawn by [`sweep_section`]).
+fn sweep_phases(
+    reports: &Path,
+    first: &[crate::study::sweep::SweepRow],
+) -> Result<String, StudyError> {
+    let mut md = String::new();
+    let mut table = String::new();
+    let mut plots = String::new();
+    for (k, (stem, front, formulation)) in SWEEP_SERIES.iter().enumerate() {
+        let csv = reports.join(format!("data/{stem}.csv"));
+        let rows = if k == 0 {
+            first.to_vec()
+        } else if csv.exists() {
+            crate::study::sweep::read_csv(&csv)?
+        } else {
+            continue;
+        };
+        let p = crate::study::sweep::phases(&rows, 0.1, 0.6);
+        let ms = |s: f64| s * 1e3;
+        let _ = writeln!(
+            table,
+            "| {front} | {formulation} | {} | {} | {:.3} | {:.3} ({:.1}×) | {:.3} ({:.1}×) | {:.3} | {:.3} ({:.2}×) |",
+            p.sweep_steps,
+            p.events,
+            ms(p.uncut_step),
+            ms(p.sweep_step),
+            p.sweep_step / p.uncut_step,
+            ms(p.event),
+            p.event / p.uncut_step,
+            ms(p.event_and_step),
+            ms(p.after_step),
+            p.after_step / p.uncut_step
+        );
+        if k > 0 {
+            let svg = reports.join(format!("{stem}.svg"));
+            crate::study::sweep::plot(
+                &svg,
+                &format!(
+                    "seed beam, blade through the seed cut ({formulation} Tet4, {front} front)"
+                ),
+                &rows,
+            )
+            .map_err(|e| plot_error(&svg, e))?;
+            let _ = writeln!(
+                plots,
+                "![step time against simulated time, {front} front, {formulation}]({stem}.svg)"
+            );
+        }
+    }
+    if table.lines().count() < 2 {
+        return Ok(md);
+    }
+    md.push_str("\n### Each front and formulation, against the uncut steps before the blade\n\nThe same sweep (1080 Tet4, dt = 0.01 s, 70 steps: the beam uncut until the blade enters at 0.1 s) with the front extended and tip-enriched (`front = \"tip\"`, the default of a case file), linear and corotational (`examples/sweep_series.rs [corotational] [tip] --out reports`). Uncut step: the median step before 0.1 s (the first left out); sweep step: the mean wall time a step of [0.1, 0.6] s costs with its event; event: the median event's own time (set-up, model update with the state's projection, symbolic factorisation where the pattern changed), then with the step after it (which refactorises); after: the median step once the sweep is done (the cut complete, its front where the blade stopped). A tip front moves inside its elements at every step, so every step of its sweep ends in an event that integrates the elements holding branch functions again and projects the state; an extended front changes only when the blade enters new elements.\n\n| front | formulation | sweep steps | events | uncut step (ms) | sweep step (ms, × uncut) | event (ms, × uncut) | event + step after (ms) | step after (ms, × uncut) |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
+    md.push_str(&table);
+    if !plots.is_empty() {
+        md.push('\n');
+        md.push_str(&plots);
+    }
+    Ok(md)
 }
 
 fn exact_section(reports: &Path) -> Result<String, StudyError> {
@@ -1599,7 +1672,31 @@ mod tests {
         std::fs::create_dir_all(dir.path().join("data")).unwrap();
         let committed = Path::new(env!("CARGO_MANIFEST_DIR")).join("reports/data/sweep_series.csv");
         std::fs::copy(&committed, dir.path().join("data/sweep_series.csv")).unwrap();
+        let alone = sweep_section(dir.path()).unwrap().expect("a section");
+        assert!(!alone.contains("### Each front"), "{alone}");
+        // With the other committed series: a row and a plot each, the tip
+        // front's sweep an event at nearly every step.
+        for (stem, _, _) in &SWEEP_SERIES[1..] {
+            let from = committed.with_file_name(format!("{stem}.csv"));
+            std::fs::copy(&from, dir.path().join(format!("data/{stem}.csv"))).unwrap();
+        }
         let md = sweep_section(dir.path()).unwrap().expect("a section");
+        for (stem, front, formulation) in &SWEEP_SERIES {
+            assert!(
+                md.contains(&format!("| {front} | {formulation} | ")),
+                "{md}"
+            );
+            if *stem != "sweep_series" {
+                assert!(md.contains(&format!("({stem}.svg)")), "{md}");
+                let svg = std::fs::metadata(dir.path().join(format!("{stem}.svg"))).unwrap();
+                assert!(svg.len() > 1000);
+            }
+        }
+        let tip = crate::study::sweep::read_csv(&committed.with_file_name("sweep_series_tip.csv"))
+            .unwrap();
+        let p = crate::study::sweep::phases(&tip, 0.1, 0.6);
+        assert!(p.events + 1 >= p.sweep_steps, "{p:?}");
+        assert!(p.uncut_step > 0.0 && p.sweep_step > p.uncut_step, "{p:?}");
         println!("{md}");
         let rows = crate::study::sweep::read_csv(&committed).unwrap();
         let events = rows.iter().filter(|r| r.event).count();

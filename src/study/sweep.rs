@@ -71,6 +71,86 @@ pub fn read_csv(path: &Path) -> Result<Vec<SweepRow>, IoError> {
     crate::io::csv::read_rows(path, false)
 }
 
+/// What a sweep during [`Phases::start`, `Phases::end`] cost against the
+/// same run's steps before it (the uncut beam on the same mesh).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Phases {
+    pub start: f64,
+    pub end: f64,
+    /// Median step (s) before the blade enters, the first step (the
+    /// integrator's factorisation) left out.
+    pub uncut_step: f64,
+    /// Mean wall time (s) a step of the sweep costs, its event included
+    /// (steps ending in (start, end]).
+    pub sweep_step: f64,
+    /// Median event (s, its own time) and median event with the step after it.
+    pub event: f64,
+    pub event_and_step: f64,
+    /// Median step (s) after the sweep.
+    pub after_step: f64,
+    /// Steps of the sweep and the events among them.
+    pub sweep_steps: usize,
+    pub events: usize,
+}
+
+/// [`Phases`] of `rows` for a blade that cuts during [`start`, `end`] (a
+/// small tolerance on the step times); NaN where a phase has no steps.
+pub fn phases(rows: &[SweepRow], start: f64, end: f64) -> Phases {
+    let tol = 1e-9 * end.abs().max(1.0);
+    let median = |mut v: Vec<f64>| -> f64 {
+        if v.is_empty() {
+            return f64::NAN;
+        }
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let during: Vec<&SweepRow> = rows
+        .iter()
+        .filter(|r| r.time > start + tol && r.time <= end + tol)
+        .collect();
+    let sweep_step = if during.is_empty() {
+        f64::NAN
+    } else {
+        during
+            .iter()
+            .map(|r| r.step_seconds + r.event_seconds)
+            .sum::<f64>()
+            / during.len() as f64
+    };
+    Phases {
+        start,
+        end,
+        uncut_step: median(
+            rows.iter()
+                .skip(1)
+                .filter(|r| r.time <= start + tol && !r.event)
+                .map(|r| r.step_seconds)
+                .collect(),
+        ),
+        sweep_step,
+        event: median(
+            rows.iter()
+                .filter(|r| r.event)
+                .map(|r| r.event_seconds)
+                .collect(),
+        ),
+        event_and_step: median(
+            rows.windows(2)
+                .filter(|w| w[0].event)
+                .map(|w| w[0].event_seconds + w[1].step_seconds)
+                .collect(),
+        ),
+        after_step: median(
+            rows.iter()
+                .filter(|r| r.time > end + tol)
+                .map(|r| r.step_seconds)
+                .collect(),
+        ),
+        sweep_steps: during.len(),
+        events: rows.iter().filter(|r| r.event).count(),
+    }
+}
+
 /// Draws the step time (ms, log scale) against simulated time, the steps
 /// followed by a cut event and the events' own time marked, as an SVG.
 pub fn plot(path: &Path, title: &str, rows: &[SweepRow]) -> Result<(), PlotError> {
@@ -191,5 +271,37 @@ mod tests {
         let text = std::fs::read_to_string(&svg).unwrap();
         assert!(text.starts_with("<svg") && text.contains("cut event"));
         assert!(matches!(plot(&svg, "empty", &[]), Err(PlotError::Empty)));
+    }
+
+    #[test]
+    fn phases_split_a_series_at_the_sweep() {
+        let row = |time: f64, step: f64, event: f64| SweepRow {
+            time,
+            step_seconds: step,
+            event: event > 0.0,
+            event_seconds: event,
+        };
+        // A first step with the factorisation, two uncut steps, a sweep
+        // of three steps (events after the first two), two steps after.
+        let rows = [
+            row(0.01, 9.0, 0.0),
+            row(0.02, 1.0, 0.0),
+            row(0.03, 1.0, 0.0),
+            row(0.04, 2.0, 10.0),
+            row(0.05, 4.0, 20.0),
+            row(0.06, 3.0, 0.0),
+            row(0.07, 1.5, 0.0),
+            row(0.08, 1.5, 0.0),
+        ];
+        let p = phases(&rows, 0.03, 0.06);
+        assert_eq!(p.uncut_step, 1.0);
+        assert_eq!(p.sweep_steps, 3);
+        assert_eq!(p.events, 2);
+        assert!((p.sweep_step - (12.0 + 24.0 + 3.0) / 3.0).abs() < 1e-12);
+        assert_eq!(p.event, 20.0);
+        // Event + the step after it: 10 + 4 and 20 + 3.
+        assert_eq!(p.event_and_step, 23.0);
+        assert_eq!(p.after_step, 1.5);
+        assert!(phases(&rows, 0.1, 0.2).sweep_step.is_nan());
     }
 }
