@@ -203,6 +203,7 @@ fn scene_step(c: &mut Criterion) {
             every,
             refactor_after: 8,
             max_rate: 1.0,
+            anderson: 0,
         };
         let modes = [
             ("direct", LinearSolver::Direct, 1),

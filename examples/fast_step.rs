@@ -5,7 +5,10 @@
 //!
 //! Modes: the refactorising Newton (the reference), CG on the lagged and on
 //! the warped factor, and modified Newton on a factor kept for k = 1, 5, 20
-//! steps (refactorised after `refactor_after` iterations on one factor).
+//! steps (refactorised after `refactor_after` iterations on one factor),
+//! by rate, the default ([`DEFAULT_LAGGED`]: Anderson-accelerated) and the
+//! default before it (plain modified Newton, refactorised below a 10×
+//! reduction or after 8 iterations on one factor).
 //! Energy: the largest relative difference of kinetic + strain energy from
 //! the reference's, and each mode's change of kinetic + strain energy from
 //! the end of the ramp (constant loads from there) to the last step (with
@@ -15,7 +18,7 @@
 use std::path::Path;
 use std::time::Instant;
 use xfem_cut::assembly::equation_shapes;
-use xfem_cut::dynamics::{DynamicOptions, LinearSolver, Newmark};
+use xfem_cut::dynamics::{DynamicOptions, LinearSolver, Newmark, DEFAULT_LAGGED};
 use xfem_cut::scene::{Analysis, Scene};
 use xfem_cut::solve::{Cholesky, Parallelism};
 
@@ -69,6 +72,7 @@ fn main() {
                 every: 1,
                 refactor_after: lag_after,
                 max_rate: 1.0,
+                anderson: 0,
             },
         ),
         (
@@ -77,6 +81,7 @@ fn main() {
                 every: 5,
                 refactor_after: lag_after,
                 max_rate: 1.0,
+                anderson: 0,
             },
         ),
         (
@@ -85,6 +90,7 @@ fn main() {
                 every: 20,
                 refactor_after: lag_after,
                 max_rate: 1.0,
+                anderson: 0,
             },
         ),
         (
@@ -93,6 +99,7 @@ fn main() {
                 every: usize::MAX,
                 refactor_after: lag_after,
                 max_rate: 0.1,
+                anderson: 0,
             },
         ),
         (
@@ -101,6 +108,7 @@ fn main() {
                 every: usize::MAX,
                 refactor_after: lag_after,
                 max_rate: 0.3,
+                anderson: 0,
             },
         ),
         (
@@ -109,6 +117,17 @@ fn main() {
                 every: usize::MAX,
                 refactor_after: lag_after,
                 max_rate: 0.03,
+                anderson: 0,
+            },
+        ),
+        ("default (Anderson)", DEFAULT_LAGGED),
+        (
+            "old default",
+            LinearSolver::Lagged {
+                every: usize::MAX,
+                refactor_after: 8,
+                max_rate: 0.1,
+                anderson: 0,
             },
         ),
     ];
@@ -176,15 +195,16 @@ fn main() {
             e_diff[k + 1] = e_diff[k + 1].max(de);
         }
     }
-    println!("mode                 | Newton/step | CG/step | fact./step | ms/step median   max | max rel. diff d   energy | E_end/E_ramp − 1");
+    println!("mode                 | Newton/step | CG/step | fact./step | ms/step median  mean   max | max rel. diff d   energy | E_end/E_ramp − 1");
     for (k, (name, _)) in modes.iter().enumerate() {
         times[k].sort_by(f64::total_cmp);
         println!(
-            "{name:20} | {:>11.2} | {:>7.2} | {:>10.3} | {:>13.3} {:>5.1} | {:>15.2e} {:>8.2e} | {:>13.6e}",
+            "{name:20} | {:>11.2} | {:>7.2} | {:>10.3} | {:>13.3} {:>5.3} {:>5.1} | {:>15.2e} {:>8.2e} | {:>13.6e}",
             newton[k] as f64 / steps as f64,
             cg[k] as f64 / steps as f64,
             facts[k] as f64 / steps as f64,
             times[k][steps / 2],
+            times[k].iter().sum::<f64>() / steps as f64,
             times[k][steps - 1],
             d_diff[k],
             e_diff[k],

@@ -14,10 +14,11 @@
 //! the state after 10 steps, restored before each) with its Newton
 //! iterations, and the step rebuilt from the parts; last, 20 steps from that
 //! state with each linear solver (refactorising, warped PCG, lagged factor
-//! k = 5, 20).
+//! k = 5, 20, and the default: Anderson-accelerated, refactorised by rate;
+//! `steps=N` for N steps instead of 20).
 //!
 //! `cargo run --release --example step_profile` (all three), or
-//! `-- 6 12 24 [tet10] [tip|extend]` for one beam (`tip`: the seed's cut
+//! `-- 6 12 24 [tet10] [tip|extend] [steps=N]` for one beam (`tip`: the seed's cut
 //! shortened to x = 0.0137, its front inside elements and tip-enriched, as
 //! in the `tip` group of benches/cut.rs; `extend`: the same cut extended to
 //! the faces of its front elements, what that group compares it with).
@@ -29,7 +30,7 @@ use xfem_cut::assembly::{
     Workspace,
 };
 use xfem_cut::cut::{setup_cut, CutInput, PlanarPatch, DEFAULT_SNAP};
-use xfem_cut::dynamics::{DynamicOptions, LinearSolver, Newmark};
+use xfem_cut::dynamics::{DynamicOptions, LinearSolver, Newmark, DEFAULT_LAGGED};
 use xfem_cut::model::{Formulation, Model};
 use xfem_cut::solve::{Cholesky, Parallelism};
 use xfem_cut::study::fixtures::{beam_mesh, seed_beam};
@@ -190,13 +191,14 @@ fn profile(div: [usize; 3], tet10: bool, front: Option<&str>) {
     modes(&m, &saved);
 }
 
-/// 20 consecutive steps from `state` with each linear solver: median ms a
-/// step, Newton iterations and factorisations a step.
+/// [`steps`] consecutive steps from `state` with each linear solver: median
+/// and mean ms a step, Newton iterations and factorisations a step.
 fn modes(m: &Model, state: &xfem_cut::dynamics::State) {
     let lagged = |every| LinearSolver::Lagged {
         every,
         refactor_after: 8,
         max_rate: 1.0,
+        anderson: 0,
     };
     for (name, linear_solver) in [
         ("refactorising Newton", LinearSolver::Direct),
@@ -209,6 +211,7 @@ fn modes(m: &Model, state: &xfem_cut::dynamics::State) {
         ),
         ("lagged k = 5", lagged(5)),
         ("lagged k = 20", lagged(20)),
+        ("lagged (the default)", DEFAULT_LAGGED),
     ] {
         let chol = Cholesky::fill_reducing(
             &m.pattern,
@@ -222,7 +225,7 @@ fn modes(m: &Model, state: &xfem_cut::dynamics::State) {
         };
         let mut nm = Newmark::new(m, chol, opts).unwrap();
         nm.state.clone_from(state);
-        let n = 20;
+        let n = steps();
         let (mut times, mut newton, mut facts, mut cg) = (Vec::new(), 0, 0, 0);
         for _ in 0..n {
             let t = Instant::now();
@@ -234,13 +237,21 @@ fn modes(m: &Model, state: &xfem_cut::dynamics::State) {
         }
         times.sort_by(f64::total_cmp);
         println!(
-            "  {name:20}: {:.3} ms a step (median of {n}), {:.2} Newton, {:.1} CG, {:.2} factorisations a step",
+            "  {name:20}: {:.3} ms a step (median of {n}; mean {:.3}), {:.2} Newton, {:.1} CG, {:.2} factorisations a step",
             times[n / 2],
+            times.iter().sum::<f64>() / n as f64,
             newton as f64 / n as f64,
             cg as f64 / n as f64,
             facts as f64 / n as f64
         );
     }
+}
+
+/// Steps of each linear solver's run: `steps=N` among the arguments, else 20.
+fn steps() -> usize {
+    std::env::args()
+        .find_map(|a| a.strip_prefix("steps=").map(|n| n.parse().expect("steps")))
+        .unwrap_or(20)
 }
 
 fn main() {

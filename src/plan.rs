@@ -155,6 +155,7 @@ impl Plan {
                     every,
                     refactor_after,
                     max_rate,
+                    anderson,
                 }),
             ) => {
                 let mut when = Vec::new();
@@ -175,10 +176,18 @@ impl Plan {
                         o.max_iterations
                     ));
                 }
+                let how = if anderson > 0 {
+                    format!(
+                        "modified Newton on a lagged factorisation of the exact tangent, Anderson-accelerated (history {}) after an iteration that reduced the residual by less than 10x",
+                        anderson.min(crate::dynamics::ANDERSON_MAX)
+                    )
+                } else {
+                    "modified Newton on a lagged factorisation of the exact tangent".to_string()
+                };
                 add(
                     &format!("numeric factorisation {}", when.join(", or ")),
                     true,
-                    "modified Newton on a lagged factorisation of the exact tangent",
+                    &how,
                 )
             }
             (true, Some(LinearSolver::Direct)) => add(

@@ -348,8 +348,13 @@ fn the_plan_shows_the_options_the_run_uses() {
         ),
         (
             dynamic("linear_solver = \"lagged\""),
-            "[run ] numeric factorisation when an iteration on it leaves more than 0.1 of the residual, or after 8 Newton iterations on one factor",
+            "[run ] numeric factorisation when an iteration on it leaves more than 0.2 of the residual, or after 12 Newton iterations on one factor",
             "every iteration",
+        ),
+        (
+            dynamic(""),
+            "Anderson-accelerated (history 5) after an iteration that reduced the residual by less than 10x",
+            "PCG",
         ),
         (
             dynamic(""),

@@ -249,8 +249,10 @@ fn damped_newton_iterations_of_the_shipped_scenes_are_pinned() {
 /// Newton step to the tolerance's level, and a factorisation serves many
 /// steps. Pinned (AMD, one thread: deterministic): Newton iterations and
 /// factorisations over the 60 steps of the bend cases' ramp and after it,
-/// the 30 of `free_slice` — 330 / 26, 306 / 27 and 118 / 25, against 170,
-/// 170 and 89 factorisations refactorising (one per iteration).
+/// the 30 of `free_slice` — 362 / 17, 355 / 18 and 122 / 23 (the plain
+/// modified Newton before the Anderson-accelerated default: 330 / 26,
+/// 306 / 27 and 118 / 25), against 170, 170 and 89 factorisations
+/// refactorising (one per iteration).
 #[test]
 fn the_default_lagged_step_of_the_shipped_scenes_is_pinned() {
     use xfem_cut::dynamics::{LinearSolver, DEFAULT_LAGGED};
@@ -283,9 +285,9 @@ fn the_default_lagged_step_of_the_shipped_scenes_is_pinned() {
         );
         assert!(worst < 1e-7, "{file}: {worst:e}");
         let want = match file {
-            "bend_dynamic.toml" => (330, 26),
-            "bend_dynamic_uncut.toml" => (306, 27),
-            _ => (118, 25),
+            "bend_dynamic.toml" => (362, 17),
+            "bend_dynamic_uncut.toml" => (355, 18),
+            _ => (122, 23),
         };
         assert_eq!((total, factorisations), want, "{file}");
     }
@@ -426,6 +428,7 @@ fn the_lagged_factor_step_follows_the_refactorising_step() {
             every,
             refactor_after: 8,
             max_rate: 1.0,
+            anderson: 0,
         });
         println!(
             "lagged k = {every}: {factorisations} factorisations, {newton} Newton iterations in 100 steps; max relative difference {worst:e}"
@@ -441,6 +444,42 @@ fn the_lagged_factor_step_follows_the_refactorising_step() {
         };
         assert_eq!(factorisations, want, "k = {every}");
     }
+}
+
+/// The default lagged step (refactorised when an iteration leaves more than
+/// 0.2 of the residual or after 12 on one factor, Anderson-accelerated after
+/// one that left more than 0.1) follows the refactorising step to the
+/// Newton tolerance's level over 100 steps of `bend_dynamic`, and its
+/// acceleration saves iterations: the same policy without it takes more
+/// Newton iterations (measured: 442 against 451, 17 factorisations each).
+#[test]
+fn the_default_anderson_accelerated_lagged_step_follows_the_refactorising_step() {
+    use xfem_cut::dynamics::{LinearSolver, DEFAULT_LAGGED};
+    let LinearSolver::Lagged {
+        every,
+        refactor_after,
+        max_rate,
+        anderson,
+    } = DEFAULT_LAGGED
+    else {
+        panic!("the default is lagged");
+    };
+    assert!(anderson > 0);
+    let (f_aa, cg, n_aa, worst) = beside_direct(DEFAULT_LAGGED);
+    let (f_plain, _, n_plain, worst_plain) = beside_direct(LinearSolver::Lagged {
+        every,
+        refactor_after,
+        max_rate,
+        anderson: 0,
+    });
+    println!(
+        "Anderson: {f_aa} factorisations, {n_aa} Newton iterations in 100 steps, max relative difference {worst:e}; plain: {f_plain}, {n_plain}, {worst_plain:e}"
+    );
+    assert_eq!(cg, 0);
+    assert!(worst < 1e-7, "{worst:e}");
+    assert!(worst_plain < 1e-7, "{worst_plain:e}");
+    assert!(n_aa < n_plain, "{n_aa} vs {n_plain}");
+    assert!(f_aa <= f_plain, "{f_aa} vs {f_plain}");
 }
 
 /// `bend_dynamic` (corotational, Rayleigh mass and stiffness damping) at
