@@ -8,13 +8,14 @@
 //! `DIR/STEM.svg` ([`xfem_cut::study::sweep`]), STEM `sweep_series` with
 //! `_tip`, `_corotational`, `_tet10` appended as they apply. The front is
 //! extended through the elements it is in, or with `tip` tip-enriched (the
-//! default of a case file). `refactorise` solves the linear steps after
+//! default of a case file); corotational steps take the lagged factor a
+//! case file defaults to ([`xfem_cut::dynamics::DEFAULT_LAGGED`]). `refactorise` solves the linear steps after
 //! events by refactorisation instead of the default bordered solve on the
 //! last factor; `border K` sets the border limit.
 //! `cargo run --release --example sweep_series -- [NX NY NZ] [linear|corotational] [tet10] [tip] [refactorise | border K] [--out reports]`
 use xfem_cut::blade::{run_dynamic, CutSet};
 use xfem_cut::cut::FrontMode;
-use xfem_cut::dynamics::{DynamicOptions, EventSolve, DEFAULT_EVENT_SOLVE};
+use xfem_cut::dynamics::{DynamicOptions, EventSolve, DEFAULT_EVENT_SOLVE, DEFAULT_LAGGED};
 use xfem_cut::model::Formulation;
 use xfem_cut::study::fixtures::{beam_mesh, seed_beam, seed_blade};
 use xfem_cut::study::sweep;
@@ -61,10 +62,18 @@ fn main() {
         seed_blade(0.1, 0.6)
     };
     let build = |cut| seed_beam(mesh.clone(), formulation, cut);
+    // A corotational scene's default step: modified Newton on a lagged
+    // factor (what a case file without `linear_solver` runs).
+    let linear_solver = if formulation == Formulation::Corotational {
+        DEFAULT_LAGGED
+    } else {
+        DynamicOptions::default().linear_solver
+    };
     let opts = DynamicOptions {
         dt: 0.01,
         steps: 70,
         event_solve,
+        linear_solver,
         ..DynamicOptions::default()
     };
     let run = run_dynamic(&cuts, &mesh, &build, opts, |_, _, _| {}).unwrap();
