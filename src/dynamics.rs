@@ -1663,9 +1663,10 @@ pub const ANDERSON_MAX: usize = 8;
 /// |f − Σ γᵢ ΔFᵢ| over the last `depth` differences of iterates X and
 /// corrections F (the normal equations, by Cholesky; a pivot at round-off
 /// leaves that step plain). On a linear map it is GMRES preconditioned by
-/// P in exact arithmetic; here it turns the linear rate of iterations on a
-/// factor taken a step or an iterate earlier into nearly a Newton rate, so
-/// a factor serves longer. The history starts anew with every step and
+/// P in exact arithmetic; here it speeds up the linear rate of iterations
+/// on a factor taken a step or an iterate earlier (a few iterations and
+/// factorisations fewer in 100 steps: see [`DEFAULT_LAGGED`]), so a factor
+/// serves longer. The history starts anew with every step and
 /// every factorisation (the map changed). Preallocated: no allocation a step.
 struct Anderson {
     depth: usize,
