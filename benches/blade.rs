@@ -192,8 +192,11 @@ fn bordered(
 }
 
 fn benches(c: &mut Criterion) {
+    // The step a case file runs: the lagged factor (a linear scene solves
+    // once on its factor whatever this says).
     let opts = DynamicOptions {
         dt: 0.005,
+        linear_solver: DEFAULT_LAGGED,
         ..DynamicOptions::default()
     };
     let mut group = c.benchmark_group("blade");
@@ -217,16 +220,6 @@ fn benches(c: &mut Criterion) {
             }
         };
         for formulation in [Formulation::Linear, Formulation::Corotational] {
-            // A corotational scene's step: the lagged factor a case file
-            // defaults to (a linear one solves once on its factor).
-            let opts = if formulation == Formulation::Corotational {
-                DynamicOptions {
-                    linear_solver: DEFAULT_LAGGED,
-                    ..opts
-                }
-            } else {
-                opts
-            };
             let name = format!("{size}_{formulation:?}").to_lowercase();
             let uncut = model(&mesh, None, formulation);
             let mut nm = settled(&uncut, opts);
@@ -341,14 +334,6 @@ fn benches(c: &mut Criterion) {
         let setup_a = cuts.setup_at(&mesh, t_a).unwrap();
         let setup_b = cuts.setup_at(&mesh, t_b).unwrap();
         for formulation in [Formulation::Linear, Formulation::Corotational] {
-            let opts = if formulation == Formulation::Corotational {
-                DynamicOptions {
-                    linear_solver: DEFAULT_LAGGED,
-                    ..opts
-                }
-            } else {
-                opts
-            };
             let name = format!("{size}_{formulation:?}").to_lowercase();
             // The model at t_a as a sweep has it: updated from the step before.
             let before = model(
