@@ -1567,6 +1567,58 @@ fn the_updates_projection_integrals_give_the_separate_projection() {
 /// keeps `travel` as given, where a + travel − a differs from it in the last
 /// bits (which moved a tip-enriched Tet10 solution by 3e-12 before).
 #[test]
+fn a_blade_given_by_its_path_alone_starts_at_the_first_keyframe() {
+    use std::path::Path;
+    use xfem_cut::scene::{CutGeometry, Scene};
+    let scene = |cut: &str| {
+        let text = format!(
+            r#"name = "path"
+[body]
+box = [[0.0, 0.0, 0.0], [0.03, 0.06, 0.2]]
+levels = [[2, 4, 9]]
+[material]
+young = 3.0e5
+poisson = 0.35
+density = 1070.0
+[[cut]]
+{cut}
+[[fix]]
+min = [-inf, -inf, 0.0]
+max = [inf, inf, 0.0]
+displacement = [0.0, 0.0, 0.0]
+[analysis]
+type = "dynamic"
+dt = 0.01
+steps = 2
+"#
+        );
+        Scene::parse(&text, Path::new("path.toml"))
+    };
+    let path = "path = [[[0.0, -0.01, 0.1], [0.0, 0.07, 0.1]], [[0.01, -0.01, 0.1], [0.01, 0.07, 0.1]], [[0.01, -0.01, 0.12], [0.01, 0.07, 0.12]]]";
+    let keyframes = |cut: &str| match scene(cut).unwrap().cuts[0].geometry.clone() {
+        CutGeometry::Blade { keyframes, travel } => {
+            assert!(travel.is_none());
+            keyframes
+        }
+        other => panic!("not a blade: {other:?}"),
+    };
+    let alone = keyframes(&format!("{path}\ntimes = [0.1, 0.3, 0.6]"));
+    let with_blade = keyframes(&format!(
+        "blade = [[0.0, -0.01, 0.1], [0.0, 0.07, 0.1]]\n{path}\ntimes = [0.1, 0.3, 0.6]"
+    ));
+    assert_eq!(alone, with_blade);
+    assert_eq!(alone.len(), 3);
+    // Without a blade the times count the path's keyframes only.
+    let err = scene(&format!("{path}\ntimes = [0.0, 0.1, 0.3, 0.6]")).unwrap_err();
+    let err = err.to_string();
+    assert!(
+        err.contains("cut[0].times") && err.contains("has 4 entries but path has 3 keyframes"),
+        "{err}"
+    );
+    assert!(!err.contains("with the blade first"), "{err}");
+}
+
+#[test]
 fn a_static_blade_given_by_travel_is_its_patch_to_the_last_bit() {
     use std::path::Path;
     use xfem_cut::run::solve_scene;

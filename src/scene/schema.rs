@@ -592,7 +592,14 @@ fn validate_cut(c: &Checker, k: &str, t: CutFile, base: &Path) -> Result<CutSpec
         || t.end.is_some()
         || t.path.is_some()
         || t.times.is_some();
-    let kinds = [patch, t.surface.is_some(), t.blade.is_some()];
+    // A blade given by its path alone: the edge at the first keyframe.
+    let inferred = t.blade.is_none() && !patch && t.surface.is_none() && t.travel.is_none();
+    let blade = match (&t.blade, &t.path) {
+        (Some(b), _) => Some(*b),
+        (None, Some(path)) if inferred => path.first().copied(),
+        _ => None,
+    };
+    let kinds = [patch, t.surface.is_some(), blade.is_some()];
     match kinds.iter().filter(|&&b| b).count() {
         0 if blade_keys => {
             return Err(c.err(
@@ -614,7 +621,7 @@ fn validate_cut(c: &Checker, k: &str, t: CutFile, base: &Path) -> Result<CutSpec
             ))
         }
     }
-    if t.blade.is_none() && blade_keys {
+    if blade.is_none() && blade_keys {
         let name = [
             ("travel", t.travel.is_some()),
             ("start", t.start.is_some()),
@@ -661,7 +668,7 @@ fn validate_cut(c: &Checker, k: &str, t: CutFile, base: &Path) -> Result<CutSpec
         }
         CutGeometry::Surface(p)
     } else {
-        let [a, b] = t.blade.expect("one kind is given");
+        let [a, b] = blade.expect("one kind is given");
         let a = Point3::from(c.finite3(&key("blade"), a)?);
         let b = Point3::from(c.finite3(&key("blade"), b)?);
         if (b - a).norm() == 0.0 {
@@ -723,7 +730,7 @@ fn validate_cut(c: &Checker, k: &str, t: CutFile, base: &Path) -> Result<CutSpec
                     .ok_or_else(|| c.err(key("times"), "missing required key (with path)"))?;
                 // The blade may be left out of the path: then it is the
                 // keyframe at times[0] and the path's edges follow it.
-                let path: Vec<[Vec3; 2]> = if times.len() == path.len() + 1 {
+                let path: Vec<[Vec3; 2]> = if times.len() == path.len() + 1 && !inferred {
                     std::iter::once([a.coords.into(), b.coords.into()])
                         .chain(path)
                         .collect()
@@ -733,12 +740,20 @@ fn validate_cut(c: &Checker, k: &str, t: CutFile, base: &Path) -> Result<CutSpec
                 if times.len() != path.len() {
                     return Err(c.err(
                         key("times"),
-                        format!(
-                            "has {} entries but path has {} keyframes (or {} with the blade first)",
-                            times.len(),
-                            path.len(),
-                            path.len() + 1
-                        ),
+                        if inferred {
+                            format!(
+                                "has {} entries but path has {} keyframes",
+                                times.len(),
+                                path.len()
+                            )
+                        } else {
+                            format!(
+                                "has {} entries but path has {} keyframes (or {} with the blade first)",
+                                times.len(),
+                                path.len(),
+                                path.len() + 1
+                            )
+                        },
                     ));
                 }
                 if path.is_empty() {
