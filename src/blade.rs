@@ -714,6 +714,17 @@ fn clipped_t_range(pts: &[(f64, f64)], lo: f64, hi: f64) -> Option<(f64, f64)> {
     Some((tmin, tmax))
 }
 
+/// The t range of the convex polygon `pts` (s, t) inside the strip
+/// 0 ≤ s ≤ 1 from the fraction the patch first overlaps it: its lowest t,
+/// or 0 where the polygon reaches behind the blade's start (the edge starts
+/// inside the body: the patch [0, 1] × [0, f] meets it from the first
+/// step). `None` where the strip misses it or it lies wholly behind the
+/// start (never swept).
+fn swept_onset(pts: &[(f64, f64)]) -> Option<(f64, f64)> {
+    let (lo, hi) = clipped_t_range(pts, 0.0, 1.0)?;
+    (hi >= 0.0).then_some((lo.max(0.0), hi))
+}
+
 impl SweepIndex {
     fn new(cuts: &CutSet, mesh: &TetMesh) -> SweepIndex {
         let mut h = vec![f64::INFINITY; mesh.n_nodes()];
@@ -758,7 +769,7 @@ impl SweepIndex {
                 if crossed {
                     let poly = crate::cut::section_polygon(&mesh.vertex_points(e), &f);
                     let st: Vec<(f64, f64)> = poly.iter().map(|x| p.coordinates(x)).collect();
-                    if let Some((onset, _)) = clipped_t_range(&st, 0.0, 1.0) {
+                    if let Some((onset, _)) = swept_onset(&st) {
                         critical.push(onset);
                         critical.push(st.iter().map(|c| c.1).fold(f64::NEG_INFINITY, f64::max));
                     }
@@ -770,7 +781,7 @@ impl SweepIndex {
                         // overlaps it ([`crate::cut`]).
                         let st: Vec<(f64, f64)> =
                             tri.iter().map(|&j| p.coordinates(&mesh.nodes[j])).collect();
-                        if let Some((onset, _)) = clipped_t_range(&st, 0.0, 1.0) {
+                        if let Some((onset, _)) = swept_onset(&st) {
                             critical.push(onset);
                         }
                     }

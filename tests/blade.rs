@@ -191,6 +191,59 @@ fn cut_events_keep_both_energies_and_refactorise_only_there() {
 }
 
 #[test]
+fn a_straight_blade_starting_inside_the_body_cuts_from_its_first_step() {
+    // The edge starts inside the box (x = 0.208 of [0.047, 0.243]), so the
+    // elements its first step sweeps reach behind the start (t < 0 in the
+    // completed patch): the sweep index took their lowest t as the onset
+    // and never checked that step; the extended front opened one event late
+    // and the trajectory ended 1.3e-2 off the same sweep checked every step
+    // (found by a fuzz of random CLI scenes).
+    use std::path::Path;
+    use xfem_cut::scene::{Analysis, Scene};
+    let text = r#"name = "inside"
+[body]
+box = [[0.046977248517067915, -0.05701966630058733, -0.08439240617697519], [0.24320627013016732, 0.04511402343194537, 0.06500005996106736]]
+levels = [[2, 5, 5]]
+[material]
+young = 3000.0
+poisson = 0.3771686885195259
+density = 1000.0
+[[cut]]
+blade = [[0.2082163814416391, -0.17428523927384681, -0.01999829746786782], [0.2082163814416391, 0.05153794974633749, -0.012297575158706046]]
+travel = [-0.08312241588840269, -0.0005623564917845232, 0.01649106814173739]
+start = 0.05
+end = 0.2
+front = "extend"
+[[fix]]
+min = [-inf, -inf, -0.08439240617697519]
+max = [inf, inf, -0.08439240617697519]
+displacement = [0.0, 0.0, 0.0]
+[gravity]
+acceleration = [1.0, 2.0, 3.0]
+[analysis]
+type = "dynamic"
+dt = 0.01
+steps = 30
+"#;
+    let scene = Scene::parse(text, Path::new("inside.toml")).unwrap();
+    let mesh = scene.mesh(0).unwrap();
+    let cuts = CutSet::from_scene(&scene).unwrap();
+    let (fixed, tractions) = scene.selections(&mesh).unwrap();
+    let build = |cut| scene.model_input(mesh.clone(), cut, fixed.clone(), &tractions);
+    let Analysis::Dynamic { options, .. } = scene.analysis else {
+        panic!("a dynamic scene")
+    };
+    let run = run_dynamic(&cuts, &mesh, &build, options, |_, _, _| {}).unwrap();
+    let sw = &run.sweep;
+    let got: Vec<usize> = sw.events.iter().map(|e| e.step).collect();
+    let full = full_check_events(&cuts, &mesh, &options);
+    println!("events at steps {full:?}: {sw}");
+    assert_eq!(full.first(), Some(&6), "the first swept step is an event");
+    assert_eq!(got, full, "events vs a full check after every step");
+    assert!(sw.checks < options.steps, "{sw}");
+}
+
+#[test]
 fn bad_blades_are_errors_naming_the_key() {
     let p = patch();
     let msg = |r: Result<Blade, BladeError>| r.expect_err("must be refused").to_string();
