@@ -296,7 +296,7 @@ impl Model {
         }
         let mut fixed = fixed;
         if let Some(c) = cut.as_ref() {
-            let enriched = enriched_fixes(mesh.n_nodes(), c, &fixed);
+            let enriched = enriched_fixes(&mesh, c, &fixed);
             fixed.extend(enriched);
             let gauge = ramp_gauge_fixes(&mesh, c, &fixed);
             fixed.extend(gauge);
@@ -2095,26 +2095,105 @@ fn enriched_shapes_of(n_nodes: usize, cut: &CutSetup, node: usize) -> impl Itera
         .chain(first.into_iter().flat_map(|f| f..f + N_BRANCH))
 }
 
-/// Enriched DOFs prescribed to zero wherever their node's component is
-/// prescribed: the enrichment must vanish on a Dirichlet boundary, or the
-/// body moves between its fixed nodes (a cut reaching a clamped face would
-/// open there, and test functions that do not vanish on the boundary make
-/// the discrete problem another one: the linear field no longer solves the
-/// patch test with a cut crossing a symmetry plane). With shifted
-/// enrichment the node's displacement is then its standard DOFs' on every
-/// side, the prescribed value. Entries for enriched shapes of `fixed` pass
-/// through [`number_dofs`] unchanged (the first entry of a DOF wins).
+/// Enriched DOFs prescribed to zero at fixed nodes, where the Dirichlet
+/// boundary needs it. The enrichment must vanish where the cut crosses a
+/// Dirichlet boundary, or the body moves between its fixed nodes (a cut
+/// reaching a clamped face would open there, and test functions that do not
+/// vanish on the boundary make the discrete problem another one: the linear
+/// field no longer solves the patch test with a cut crossing a symmetry
+/// plane). With shifted enrichment a node's displacement is its standard
+/// DOFs' on its own side (the prescribed value), and its Heaviside function
+/// is non-zero only on the other side: on the boundary only where the cut
+/// crosses it ([`heaviside_held`]). Where it does not, that function is the
+/// material beyond the cut within the node's elements, which the boundary
+/// does not hold: prescribing it there clamped that material too (a part
+/// freed inside the body within one element of a clamped face did not fall
+/// but vibrated about its place, found by a fuzz of closed surfaces through
+/// the CLI). Tip functions vary along the boundary beside the node: all of
+/// them are prescribed at a fixed node. Entries for enriched shapes of
+/// `fixed` pass through [`number_dofs`] unchanged (the first entry of a DOF
+/// wins).
 fn enriched_fixes(
-    n_nodes: usize,
+    mesh: &TetMesh,
     cut: &CutSetup,
     fixed: &[(usize, [Option<f64>; 3])],
 ) -> Vec<(usize, [Option<f64>; 3])> {
+    let n_nodes = mesh.n_nodes();
+    let mut is_fixed = vec![[false; 3]; n_nodes];
+    for &(node, comps) in fixed.iter().filter(|(n, _)| *n < n_nodes) {
+        for (f, v) in is_fixed[node].iter_mut().zip(comps) {
+            *f |= v.is_some();
+        }
+    }
+    let held = heaviside_held(mesh, cut, |i, c| is_fixed[i][c]);
     let mut out = Vec::new();
     for &(node, comps) in fixed.iter().filter(|(n, _)| *n < n_nodes) {
-        let zero = comps.map(|v| v.map(|_| 0.0));
-        out.extend(enriched_shapes_of(n_nodes, cut, node).map(|s| (s, zero)));
+        if let Some(j) = cut.enriched[node] {
+            let h = held[node];
+            out.push((n_nodes + j, std::array::from_fn(|c| h[c].then_some(0.0))));
+        }
+        if let Some(t) = cut.tip.get(node).copied().flatten() {
+            let zero = comps.map(|v| v.map(|_| 0.0));
+            let first = n_nodes + cut.n_enriched + N_BRANCH * t;
+            out.extend((first..first + N_BRANCH).map(|s| (s, zero)));
+        }
     }
     out
+}
+
+/// Per node, the components of its Heaviside function that a Dirichlet
+/// boundary holds at zero: in each cut element whose fixed vertices (those
+/// with component c prescribed, `fixed(i, c)`) span an edge the cut
+/// crosses (its vertices on either side, φ_i φ_k < 0, the crossing behind
+/// the front where a tip front passes through the element), component c of
+/// every enriched node of the element with c prescribed. The prescribed
+/// nodes of an element span the Dirichlet boundary there (an edge, a face),
+/// and the other side of each node's Heaviside function reaches it only
+/// through that crossing.
+fn heaviside_held(
+    mesh: &TetMesh,
+    cut: &CutSetup,
+    fixed: impl Fn(usize, usize) -> bool,
+) -> Vec<[bool; 3]> {
+    let n_nodes = mesh.n_nodes();
+    let mut held = vec![[false; 3]; n_nodes];
+    for (e, element) in cut.elements.iter().enumerate() {
+        let ElementCut::Cut { partial, .. } = element else {
+            continue;
+        };
+        let conn = mesh.element(e);
+        if !conn.iter().any(|&i| cut.enriched[i].is_some()) {
+            continue;
+        }
+        let v = mesh.vertices(e);
+        // A tip front inside the element: only crossings behind it count.
+        let tip_front = *partial && !cut.front_level.is_empty();
+        let crossed = |i: usize, k: usize| {
+            let (fi, fk) = (cut.phi[i], cut.phi[k]);
+            if fi * fk >= 0.0 {
+                return false;
+            }
+            if !tip_front {
+                return true;
+            }
+            let t = fi / (fi - fk);
+            let (gi, gk) = (cut.front_level[i], cut.front_level[k]);
+            gi + t * (gk - gi) < 0.0
+        };
+        for c in 0..3 {
+            let spans_crossing = (0..4).any(|a| {
+                (a + 1..4).any(|b| fixed(v[a], c) && fixed(v[b], c) && crossed(v[a], v[b]))
+            });
+            if spans_crossing {
+                for &i in conn {
+                    if cut.enriched[i].is_some() && fixed(i, c) {
+                        held[i][c] = true;
+                    }
+                }
+            }
+        }
+    }
+    held
 }
 
 /// With the ramp ([`crate::cut::Blending::Ramp`]) the tip functions are
@@ -2863,8 +2942,47 @@ impl Model {
         let mut old_masses: Vec<(usize, Vec<f64>)> = Vec::new();
         // The changed elements' old contributions (loads, masses) and new
         // blocks, integrated side by side; added below in element order.
+        // Per DOF of the new Heaviside functions: whether a Dirichlet
+        // boundary the cut crosses holds it at zero ([`enriched_fixes`]);
+        // `None` for the other DOFs (standard ones stay as they are, tip
+        // ones are held where their node's component is fixed).
+        let node_fixed = |i: usize, c: usize| self.equation[3 * i + c] == NONE;
+        let mut heaviside_dof_held: Vec<Option<bool>> = vec![None; 3 * n_shape];
+        if let Some(c) = cut.as_ref() {
+            let held = heaviside_held(mesh, c, node_fixed);
+            for i in 0..n_nodes {
+                if let Some(j) = c.enriched[i] {
+                    for (k, &h) in held[i].iter().enumerate() {
+                        heaviside_dof_held[3 * (n_nodes + j) + k] = Some(h);
+                    }
+                }
+            }
+        }
+        // Nodes whose Heaviside function stays but whose held components
+        // change (the cut reached, or left, a Dirichlet boundary beside
+        // them): their elements are integrated again, so that the DOFs
+        // that become free get their entries.
+        let mut flipped = vec![false; n_nodes];
+        if let Some(oc) = self.cut.as_ref() {
+            for (i, f) in flipped.iter_mut().enumerate() {
+                let Some(jo) = oc.enriched[i] else {
+                    continue;
+                };
+                let so = n_nodes + jo;
+                if map[so] == NONE {
+                    continue;
+                }
+                let sn = map[so] as usize;
+                *f = (0..3).any(|k| {
+                    heaviside_dof_held[3 * sn + k] != Some(self.equation[3 * so + k] == NONE)
+                });
+            }
+        }
         let kept: Vec<bool> = (0..mesh.n_elements())
-            .map(|e| same_element_model(mesh, self.cut.as_ref(), cut.as_ref(), e))
+            .map(|e| {
+                same_element_model(mesh, self.cut.as_ref(), cut.as_ref(), e)
+                    && !mesh.element(e).iter().any(|&i| flipped[i])
+            })
             .collect();
         let to_integrate: Vec<usize> = (0..mesh.n_elements()).filter(|&e| !kept[e]).collect();
         let integrate_old = need_mass || integrator.has_load();
@@ -2940,8 +3058,12 @@ impl Model {
             }
         }
         let mut eq_map = vec![NONE; self.n_free];
+        // (A DOF a Dirichlet boundary now holds drops its equation.)
+        let held_now = |so: usize, c: usize| {
+            map[so] != NONE && heaviside_dof_held[3 * map[so] as usize + c] == Some(true)
+        };
         for (dof, &eq) in self.equation.iter().enumerate() {
-            if eq != NONE && map[dof / 3] != NONE {
+            if eq != NONE && map[dof / 3] != NONE && !held_now(dof / 3, dof % 3) {
                 eq_map[eq as usize] = 0;
             }
         }
@@ -2968,8 +3090,9 @@ impl Model {
             .iter()
             .filter_map(|p| {
                 let sn = map[p.dof / 3];
-                (sn != NONE).then(|| Prescribed {
-                    dof: 3 * sn as usize + p.dof % 3,
+                let dof = 3 * sn as usize + p.dof % 3;
+                (sn != NONE && heaviside_dof_held[dof] != Some(false)).then_some(Prescribed {
+                    dof,
                     value: p.value,
                 })
             })
@@ -2979,16 +3102,30 @@ impl Model {
             if so != NONE {
                 for c in 0..3 {
                     let eq = self.equation[3 * so as usize + c];
-                    if eq != NONE {
+                    let held = heaviside_dof_held[3 * sn + c];
+                    if eq != NONE && held == Some(true) {
+                        // Held from now on: its equation is gone.
+                        prescribed.push(Prescribed {
+                            dof: 3 * sn + c,
+                            value: 0.0,
+                        });
+                    } else if eq != NONE {
                         equation[3 * sn + c] = eq_map[eq as usize];
+                    } else if held == Some(false) {
+                        // Held before, free now: a new equation.
+                        equation[3 * sn + c] = n_free;
+                        n_free += 1;
                     }
                 }
             } else {
-                // A new shape function (enriched): prescribed to zero where its
-                // node's component is ([`enriched_fixes`]), else a new equation.
+                // A new shape function (enriched): prescribed to zero where
+                // [`enriched_fixes`] prescribes it, else a new equation.
                 let node = node_of[sn];
                 for c in 0..3 {
-                    if node != NONE && self.equation[3 * node as usize + c] == NONE {
+                    let held = heaviside_dof_held[3 * sn + c].unwrap_or_else(|| {
+                        node != NONE && self.equation[3 * node as usize + c] == NONE
+                    });
+                    if held {
                         prescribed.push(Prescribed {
                             dof: 3 * sn + c,
                             value: 0.0,

@@ -1131,6 +1131,174 @@ fn incremental_update_equals_a_full_build_at_every_event() {
 }
 
 #[test]
+fn a_blade_cutting_down_into_a_clamped_face_holds_its_enrichment_there_from_then_on() {
+    use xfem_cut::cut::FrontMode;
+    use xfem_cut::study::fixtures::{beam_mesh, seed_beam};
+    // A blade moving along x and down through the clamped face z = 0 of the
+    // beam (edge across y at z = 0.012, down by 0.02 over 0.03 in x: the
+    // tilted plane meets the face at x = 0.018). Clamped nodes are
+    // Heaviside-enriched where the cut reaches their elements; their
+    // functions are free while the cut in their elements stays above the
+    // face (they are then the material beyond the cut, which the face does
+    // not hold) and held at zero from the event at which it crosses the
+    // face in one of their elements. Each event's update equals a full
+    // build of the same set-up: equations, prescribed DOFs, matrices,
+    // loads, masses.
+    let blade = Blade::straight(
+        0,
+        Point3::new(-0.001, -0.01, 0.012),
+        Point3::new(-0.001, 0.07, 0.012),
+        Vector3::new(0.032, 0.0, -0.02),
+        0.0,
+        1.0,
+    )
+    .unwrap();
+    for (tet10, div, front) in [
+        (false, [6, 4, 11], FrontMode::Extend),
+        (false, [6, 4, 11], FrontMode::Tip),
+        (true, [4, 3, 7], FrontMode::Extend),
+    ] {
+        let mesh = beam_mesh(div, tet10);
+        let mut cuts = one_blade(blade.clone());
+        cuts.front = front;
+        let build = |cut| seed_beam(mesh.clone(), Formulation::Linear, cut).unwrap();
+        let mut inc = build(None);
+        let mut worst = [0.0f64; 5];
+        let n = mesh.n_nodes();
+        // Per clamped node: whether its Heaviside function was ever free,
+        // and whether it was held after having been free.
+        let mut was_free = vec![false; n];
+        let mut seen = Vec::new();
+        for k in 1..=20 {
+            let t = 0.05 * k as f64;
+            let s = cuts.setup_at(&mesh, t).unwrap();
+            if xfem_cut::blade::same_setup(inc.cut.as_ref(), s.as_ref()) {
+                continue;
+            }
+            let (next, _) = inc.update_cut(s.clone()).unwrap();
+            let full = build(s);
+            let label = format!("tet10 {tet10} {front:?} t = {t}");
+            // (The update keeps the old equations' numbers: compare which DOFs are free.)
+            let free = |m: &xfem_cut::model::Model| -> Vec<bool> {
+                m.equation
+                    .iter()
+                    .map(|&e| e != xfem_cut::model::NONE)
+                    .collect()
+            };
+            assert!(free(&next) == free(&full), "{label}: free DOFs");
+            let sorted = |m: &xfem_cut::model::Model| {
+                let mut p: Vec<(usize, u64)> = m
+                    .prescribed
+                    .iter()
+                    .map(|p| (p.dof, p.value.to_bits()))
+                    .collect();
+                p.sort_unstable();
+                p
+            };
+            assert_eq!(sorted(&next), sorted(&full), "{label}: prescribed DOFs");
+            for (w, d) in worst.iter_mut().zip(model_difference(&next, &full)) {
+                *w = w.max(d);
+            }
+            let c = full.cut.as_ref().unwrap();
+            let (mut free, mut held) = (0, 0);
+            for i in 0..n {
+                let Some(j) = c.enriched[i] else { continue };
+                if mesh.nodes[i].z.abs() > 1e-12 {
+                    continue;
+                }
+                if full.equation[3 * (n + j)] == xfem_cut::model::NONE {
+                    held += 1;
+                    assert!(!was_free[i], "{label}: node {i} was free");
+                } else {
+                    free += 1;
+                    was_free[i] = true;
+                }
+            }
+            seen.push((free, held));
+            inc = next;
+        }
+        println!("tet10 {tet10} {front:?}: clamped Heaviside nodes (free, held) per event {seen:?}; worst {worst:?}");
+        assert!(
+            seen.iter().any(|&(f, _)| f > 0),
+            "free where the cut stays above the face"
+        );
+        assert!(
+            seen.last().is_some_and(|&(_, h)| h > 0),
+            "held where it crosses it"
+        );
+        for w in worst {
+            assert!(w <= 1e-13, "{worst:?}");
+        }
+    }
+}
+
+#[test]
+fn an_update_whose_cut_reaches_or_leaves_a_clamped_face_holds_or_frees_the_enrichment_there() {
+    use xfem_cut::cut::{setup_cut, CutInput};
+    use xfem_cut::study::fixtures::{beam_mesh, seed_beam};
+    // A: the plane z = 0.005 above the clamped face z = 0 (the clamped
+    // nodes below it are enriched and free). B: the plane tilted about
+    // x = 0.01 so that it crosses the face at x = 0.018 (the clamped
+    // enriched nodes of the elements there are held). An update from one
+    // to the other keeps those nodes' Heaviside functions and changes
+    // which of their DOFs are free: it equals a full build both ways.
+    let a = PlanarPatch {
+        origin: Point3::new(-0.01, -0.01, 0.005),
+        u: Vector3::new(0.035, 0.0, 0.0),
+        v: Vector3::new(0.0, 0.08, 0.0),
+    };
+    let b = PlanarPatch {
+        origin: Point3::new(-0.01, -0.01, 0.0175),
+        u: Vector3::new(0.035, 0.0, -0.021875),
+        v: Vector3::new(0.0, 0.08, 0.0),
+    };
+    for (tet10, div) in [(false, [6, 4, 11]), (true, [4, 3, 7])] {
+        let mesh = beam_mesh(div, tet10);
+        let setup =
+            |p: &PlanarPatch| setup_cut(&mesh, &[CutInput::extend(p, DEFAULT_SNAP)]).unwrap();
+        let build =
+            |p: &PlanarPatch| seed_beam(mesh.clone(), Formulation::Linear, Some(setup(p))).unwrap();
+        let n = mesh.n_nodes();
+        // Kept Heaviside DOFs free in `from` and held in `to`.
+        let turned_held = |from: &xfem_cut::model::Model, to: &xfem_cut::model::Model| {
+            let (cf, ct) = (from.cut.as_ref().unwrap(), to.cut.as_ref().unwrap());
+            (0..n)
+                .filter_map(|i| Some((cf.enriched[i]?, ct.enriched[i]?)))
+                .flat_map(|(jf, jt)| (0..3).map(move |c| (3 * (n + jf) + c, 3 * (n + jt) + c)))
+                .filter(|&(df, dt)| {
+                    from.equation[df] != xfem_cut::model::NONE
+                        && to.equation[dt] == xfem_cut::model::NONE
+                })
+                .count()
+        };
+        for (from, to) in [(&a, &b), (&b, &a)] {
+            let start = build(from);
+            let (next, stats) = start.update_cut(Some(setup(to))).unwrap();
+            let full = build(to);
+            let free = |m: &xfem_cut::model::Model| -> Vec<bool> {
+                m.equation
+                    .iter()
+                    .map(|&e| e != xfem_cut::model::NONE)
+                    .collect()
+            };
+            assert!(free(&next) == free(&full), "tet10 {tet10}: free DOFs");
+            let diff = model_difference(&next, &full);
+            println!(
+                "tet10 {tet10}: {} DOFs turned held, {} turned free; {stats:?}; {diff:?}",
+                turned_held(&start, &full),
+                turned_held(&full, &start)
+            );
+            for d in diff {
+                assert!(d <= 1e-13, "{diff:?}");
+            }
+        }
+        // Free above the face (A), held where it crosses it (B).
+        let (ma, mb) = (build(&a), build(&b));
+        assert!(turned_held(&ma, &mb) > 0, "no DOF changed");
+    }
+}
+
+#[test]
 fn a_bordered_solve_on_the_old_factor_equals_refactorisation() {
     use xfem_cut::blade::stiffness_plus_mass;
     use xfem_cut::solve::BorderedSolve;
