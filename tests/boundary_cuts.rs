@@ -262,3 +262,75 @@ fn cut_events_fix_and_load_new_enriched_dofs_as_a_build_does() {
         assert!(events >= 2, "{front:?}: {events} events");
     }
 }
+
+#[test]
+fn a_cut_through_the_beam_just_above_its_clamped_face_frees_all_above_it() {
+    // The seed's beam cut through its whole section at z = 0.005 (a third
+    // of its first element layer above the clamped face z = 0): everything
+    // above is free. A static scene is refused as floating free; a dynamic
+    // one falls with g. Before the clamped nodes' Heaviside DOFs were fixed
+    // only where the cut crosses the clamped face, they held the beam above
+    // the cut at its first layer's nodes: it swung to ux = 0.099 m with
+    // 1e-2 sideways instead of falling 0.196 m (static it was refused all
+    // the same: the part analysis saw what the DOFs did not).
+    use xfem_cut::locate::Locator;
+    use xfem_cut::run::evaluate_at;
+    let text = |analysis: &str| {
+        format!(
+            r#"name = "through"
+[body]
+box = [[0.0, 0.0, 0.0], [0.03, 0.06, 0.2]]
+levels = [[2, 4, 13]]
+[material]
+young = 3.0e5
+poisson = 0.35
+density = 1070.0
+[[cut]]
+origin = [-0.01, -0.01, 0.005]
+u = [0.05, 0.0, 0.0]
+v = [0.0, 0.08, 0.0]
+[[fix]]
+min = [-inf, -inf, 0.0]
+max = [inf, inf, 0.0]
+displacement = [0.0, 0.0, 0.0]
+[gravity]
+acceleration = [9.81, 0.0, 0.0]
+[analysis]
+{analysis}
+"#
+        )
+    };
+    let path = Path::new("through.toml");
+    let e = solve_scene(
+        &Scene::parse(&text("type = \"static\""), path).unwrap(),
+        0,
+        None,
+        false,
+    )
+    .err()
+    .expect("a static scene whose part floats free is refused")
+    .to_string();
+    assert!(e.contains("floats free"), "{e}");
+    for mass in ["consistent", "lumped"] {
+        let dynamic = format!("type = \"dynamic\"\ndt = 0.01\nsteps = 20\nmass = \"{mass}\"");
+        let r = solve_scene(
+            &Scene::parse(&text(&dynamic), path).unwrap(),
+            0,
+            None,
+            false,
+        )
+        .unwrap();
+        let locator = Locator::new(&r.model.mesh);
+        let expected = Vector3::new(0.5 * 9.81 * 0.2f64.powi(2), 0.0, 0.0);
+        for x in [Point3::new(0.0, 0.03, 0.2), Point3::new(0.03, 0.0, 0.05)] {
+            let u = evaluate_at(&r.model, &locator, &r.d, &x).unwrap();
+            let err = (u - expected).norm() / expected.norm();
+            println!("{mass}: u at {x:?} = {u:?}: {err:.1e} off ½ g t²");
+            assert!(err <= 1e-9, "{mass}: {err:e}");
+        }
+        // The clamped layer below the cut stays.
+        let below =
+            evaluate_at(&r.model, &locator, &r.d, &Point3::new(0.015, 0.03, 0.002)).unwrap();
+        assert!(below.norm() < 1e-3 * expected.norm(), "{below:?}");
+    }
+}
