@@ -747,8 +747,12 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
         crossed[e] = true;
         let poly = section_polygon(&p, &f);
         // Snapped or lifted nodes move the section up to a snap off the surface.
+        // A closed surface (no boundary) has no outside for a section to lie
+        // in: every element its level set crosses is cut. (Its section can
+        // lie beside the triangles in long elements, and an element left
+        // uncut there joined the part inside to the body.)
         let reach = 2.0 * lift_distance(snap) * mesh.element_size(e);
-        if !surface.overlaps(&poly, reach) {
+        if !boundary.is_empty() && !surface.overlaps(&poly, reach) {
             elements.push(ElementCut::Uncut);
             continue;
         }
