@@ -869,3 +869,60 @@ mass = "consistent"
     println!("u at the enclosed vertex {u:?}, ½ g t² {expected:?}: {err:.1e}");
     assert!(err <= 1e-8, "{err:e}");
 }
+
+#[test]
+fn stand_ins_inside_a_large_closed_surface_take_its_inside() {
+    use xfem_cut::model::same_element_cut;
+    // A tilted closed box filling most of the bar: nodes more than twice an
+    // element from its faces take stand-in level sets, inside it too. They
+    // must take its inside: with the + side the elements between them and
+    // the band of measured nodes were crossed, and (a closed surface
+    // cutting every element its level set crosses) cut, deep inside the box.
+    let r = nalgebra::Rotation3::from_axis_angle(&Vector3::z_axis(), 0.1)
+        * nalgebra::Rotation3::from_axis_angle(&Vector3::x_axis(), 0.05);
+    let (c, half) = (Vector3::new(0.5, 0.5, 1.0), Vector3::new(0.42, 0.41, 0.93));
+    let v: Vec<Point3<f64>> = (0..8)
+        .map(|k| {
+            let s = Vector3::new(
+                if k & 1 == 1 { 1.0 } else { -1.0 },
+                if k & 2 == 2 { 1.0 } else { -1.0 },
+                if k & 4 == 4 { 1.0 } else { -1.0 },
+            );
+            Point3::from(c + r * s.component_mul(&half))
+        })
+        .collect();
+    let mut tris = Vec::new();
+    for q in [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ] {
+        tris.push([q[0], q[1], q[2]]);
+        tris.push([q[0], q[2], q[3]]);
+    }
+    let closed = TriangleSurface::new(v, tris, std::path::Path::new("box")).unwrap();
+    let every = EveryNode(&closed);
+    // (Tet4: the Tet10 meshes of this size leave no far node inside.)
+    let mesh = bar([14, 14, 28]);
+    let a = setup_cut(&mesh, &[CutInput::extend(&closed, DEFAULT_SNAP)]).unwrap();
+    let b = setup_cut(&mesh, &[CutInput::extend(&every, DEFAULT_SNAP)]).unwrap();
+    let inside = (0..mesh.n_nodes())
+        .filter(|&i| a.phi[i] != b.phi[i] && b.phi[i] < 0.0)
+        .count();
+    println!("{inside} stand-ins inside, {} cut elements", a.n_cut());
+    assert!(inside > 0, "no stand-in inside");
+    for i in 0..mesh.n_nodes() {
+        assert_eq!(a.phi[i] < 0.0, b.phi[i] < 0.0, "side of node {i}");
+    }
+    assert_eq!(a.enriched, b.enriched, "enriched nodes");
+    assert!(
+        a.elements
+            .iter()
+            .zip(&b.elements)
+            .all(|(x, y)| same_element_cut(x, y)),
+        "element cuts differ"
+    );
+}
