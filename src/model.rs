@@ -2518,7 +2518,9 @@ impl Model {
     /// the same DOFs there (the same ψ of its enrichment) belong to one part, so
     /// a cut that separates the body makes two parts. A part's prescribed
     /// DOFs are the prescribed components of the nodes where one of its
-    /// regions sees the standard DOFs alone (ψ = 0).
+    /// regions sees the standard DOFs alone (ψ = 0), and those where it sees
+    /// a node's standard and Heaviside DOFs both prescribed (u + ψ a = 0 at
+    /// the node: where the cut crosses a fixed boundary, [`enriched_fixes`]).
     pub fn free_parts(&self) -> Vec<String> {
         let mesh = &self.mesh;
         let mut regions: Vec<(usize, i8)> = Vec::new();
@@ -2543,19 +2545,23 @@ impl Model {
         // Key (node, ψ in the region) → first region seen with it.
         let mut first: std::collections::HashMap<(usize, i8), usize> =
             std::collections::HashMap::new();
-        // Per region: its nodes with prescribed components seen alone.
-        let mut held: Vec<Vec<usize>> = vec![Vec::new(); regions.len()];
-        let is_fixed = |node: usize| self.prescribed_nodes_contains(node);
+        // Per region: the nodes where it is held, with the components.
+        let mut held: Vec<Vec<(usize, [bool; 3])>> = vec![Vec::new(); regions.len()];
+        let n_nodes = mesh.n_nodes();
+        let fixed = |dof: usize| self.equation[dof] == NONE;
         for (r, &(e, side)) in regions.iter().enumerate() {
             for &node in mesh.element(e) {
-                let p = match &self.cut {
-                    Some(c) if side != 0 && c.enriched[node].is_some() => {
-                        psi(side, c.node_side[node]) as i8
-                    }
+                let enriched = self.cut.as_ref().and_then(|c| c.enriched[node]);
+                let p = match (&self.cut, enriched) {
+                    (Some(c), Some(_)) if side != 0 => psi(side, c.node_side[node]) as i8,
                     _ => 0,
                 };
-                if p == 0 && is_fixed(node) {
-                    held[r].push(node);
+                let mask: [bool; 3] = std::array::from_fn(|c| {
+                    fixed(3 * node + c)
+                        && (p == 0 || enriched.is_some_and(|j| fixed(3 * (n_nodes + j) + c)))
+                });
+                if mask.iter().any(|&m| m) {
+                    held[r].push((node, mask));
                 }
                 match first.entry((node, p)) {
                     std::collections::hash_map::Entry::Occupied(o) => {
@@ -2569,8 +2575,8 @@ impl Model {
             }
         }
         // Per part: its held nodes, regions and the sum of their centroids.
-        let mut parts: std::collections::HashMap<usize, (Vec<usize>, usize, Vector3<f64>)> =
-            std::collections::HashMap::new();
+        type Part = (Vec<(usize, [bool; 3])>, usize, Vector3<f64>);
+        let mut parts: std::collections::HashMap<usize, Part> = std::collections::HashMap::new();
         for (r, nodes) in held.into_iter().enumerate() {
             let root = find(&mut parent, r);
             let entry = parts
@@ -2614,18 +2620,18 @@ impl Model {
     /// 6-column matrix A (positions centred on and scaled by the nodes'
     /// spread, so A is O(1)); a motion is free where AᵀA has an eigenvalue
     /// under 1e-10 of its largest.
-    fn free_rigid_motion(&self, nodes: &[usize]) -> Option<String> {
-        let points = || nodes.iter().map(|&i| self.mesh.nodes[i].coords);
+    fn free_rigid_motion(&self, nodes: &[(usize, [bool; 3])]) -> Option<String> {
+        let points = || nodes.iter().map(|&(i, _)| self.mesh.nodes[i].coords);
         let centre = points().sum::<Vector3<f64>>() / nodes.len() as f64;
         let spread = points().map(|x| (x - centre).norm()).fold(0.0, f64::max);
         let mut gram = nalgebra::Matrix6::<f64>::zeros();
-        for &i in nodes {
+        for &(i, held) in nodes {
             let y = if spread > 0.0 {
                 (self.mesh.nodes[i].coords - centre) / spread
             } else {
                 Vector3::zeros()
             };
-            for c in (0..3).filter(|&c| self.equation[3 * i + c] == NONE) {
+            for c in (0..3).filter(|&c| held[c]) {
                 let mut a = nalgebra::Vector6::<f64>::zeros();
                 a[c] = 1.0;
                 for k in 0..3 {
@@ -2657,10 +2663,6 @@ impl Model {
         } else {
             format!("turn about an axis along {}", unit(w))
         })
-    }
-
-    fn prescribed_nodes_contains(&self, node: usize) -> bool {
-        (0..3).any(|c| self.equation[3 * node + c] == NONE)
     }
 }
 
