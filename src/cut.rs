@@ -658,7 +658,7 @@ fn far_sides_of_a_closed_surface(
     }
 }
 
-/// The set-up of one cut (`index` in the scene, for errors)./// The set-up of one cut (`index` in the scene, for errors).
+/// The set-up of one cut (`index` in the scene, for errors).
 fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSetup, CutError> {
     let (surface, snap) = (input.surface, input.snap);
     let n_nodes = mesh.n_nodes();

@@ -2942,8 +2942,6 @@ impl Model {
         let mut changed: Vec<(usize, ElementBlock)> = Vec::new();
         let mut fits = TipFits::new();
         let mut old_masses: Vec<(usize, Vec<f64>)> = Vec::new();
-        // The changed elements' old contributions (loads, masses) and new
-        // blocks, integrated side by side; added below in element order.
         // Per DOF of the new Heaviside functions: whether a Dirichlet
         // boundary the cut crosses holds it at zero ([`enriched_fixes`]);
         // `None` for the other DOFs (standard ones stay as they are, tip
@@ -2980,6 +2978,8 @@ impl Model {
                 });
             }
         }
+        // The changed elements' old contributions (loads, masses) and new
+        // blocks, integrated side by side; added below in element order.
         let kept: Vec<bool> = (0..mesh.n_elements())
             .map(|e| {
                 same_element_model(mesh, self.cut.as_ref(), cut.as_ref(), e)
