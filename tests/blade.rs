@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{bar, case, largest_difference, model, relative_difference, solve};
+use common::{bar, case, largest_difference, model, relative_difference, run_scene, solve};
 use nalgebra::{Point3, Vector3};
 use xfem_cut::blade::{run_dynamic, Blade, BladeError, CutItem, CutSet};
 use xfem_cut::cut::{setup_cut, CutInput, PlanarPatch, DEFAULT_SNAP};
@@ -264,22 +264,7 @@ steps = 30
         -0.0005623564917845232,
         0.01649106814173739,
     ];
-    let at = |p: [f64; 3], f: f64| {
-        format!(
-            "[{:?}, {:?}, {:?}]",
-            p[0] + f * t[0],
-            p[1] + f * t[1],
-            p[2] + f * t[2]
-        )
-    };
-    let keys: Vec<String> = [0.0, 0.5, 1.0]
-        .iter()
-        .map(|&f| format!("[{}, {}]", at(a, f), at(b, f)))
-        .collect();
-    let path_text = text.replace(
-        "travel = [-0.08312241588840269, -0.0005623564917845232, 0.01649106814173739]\nstart = 0.05\nend = 0.2",
-        &format!("path = [{}]\ntimes = [0.05, 0.125, 0.2]", keys.join(", ")),
-    );
+    let path_text = as_straight_path(text, a, b, t);
     assert_ne!(path_text, text);
     let (path, _, _) = run(&path_text);
     let got: Vec<usize> = path.sweep.events.iter().map(|e| e.step).collect();
@@ -338,17 +323,7 @@ dt = 0.01
 steps = 30
 rayleigh = { mass = 5.0, stiffness = 0.0 }
 "#;
-    let run = |text: &str| {
-        let scene = Scene::parse(text, Path::new("leaves.toml")).unwrap();
-        let mesh = scene.mesh(0).unwrap();
-        let cuts = CutSet::from_scene(&scene).unwrap();
-        let (fixed, tractions) = scene.selections(&mesh).unwrap();
-        let build = |cut| scene.model_input(mesh.clone(), cut, fixed.clone(), &tractions);
-        let Analysis::Dynamic { options, .. } = scene.analysis else {
-            panic!("a dynamic scene")
-        };
-        run_dynamic(&cuts, &mesh, &build, options, |_, _, _| {}).unwrap()
-    };
+    let run = |text: &str| run_scene(&Scene::parse(text, Path::new("leaves.toml")).unwrap());
     let travel = run(text);
     let a = [
         0.13684576888953098,
@@ -365,22 +340,7 @@ rayleigh = { mass = 5.0, stiffness = 0.0 }
         -0.05069082279502542,
         0.011109887444092017,
     ];
-    let at = |p: [f64; 3], f: f64| {
-        format!(
-            "[{:?}, {:?}, {:?}]",
-            p[0] + f * t[0],
-            p[1] + f * t[1],
-            p[2] + f * t[2]
-        )
-    };
-    let keys: Vec<String> = [0.0, 0.5, 1.0]
-        .iter()
-        .map(|&f| format!("[{}, {}]", at(a, f), at(b, f)))
-        .collect();
-    let path_text = text.replace(
-        "travel = [-0.08552586176686636, -0.05069082279502542, 0.011109887444092017]\nstart = 0.05\nend = 0.2",
-        &format!("path = [{}]\ntimes = [0.05, 0.125, 0.2]", keys.join(", ")),
-    );
+    let path_text = as_straight_path(text, a, b, t);
     assert_ne!(path_text, text);
     let path = run(&path_text);
     let steps = |r: &xfem_cut::blade::Progressive| -> Vec<usize> {
@@ -406,6 +366,30 @@ rayleigh = { mass = 5.0, stiffness = 0.0 }
         diff / scale
     );
     assert!(diff <= 1e-12 * scale, "{:e}", diff / scale);
+}
+
+/// `text` (a case whose blade a–b travels by t from 0.05 to 0.2 s) with the
+/// same sweep as a path of three keyframes on the line (at 0.05, 0.125, 0.2 s).
+fn as_straight_path(text: &str, a: [f64; 3], b: [f64; 3], t: [f64; 3]) -> String {
+    let at = |p: [f64; 3], f: f64| {
+        format!(
+            "[{:?}, {:?}, {:?}]",
+            p[0] + f * t[0],
+            p[1] + f * t[1],
+            p[2] + f * t[2]
+        )
+    };
+    let keys: Vec<String> = [0.0, 0.5, 1.0]
+        .iter()
+        .map(|&f| format!("[{}, {}]", at(a, f), at(b, f)))
+        .collect();
+    text.replace(
+        &format!(
+            "travel = [{:?}, {:?}, {:?}]\nstart = 0.05\nend = 0.2",
+            t[0], t[1], t[2]
+        ),
+        &format!("path = [{}]\ntimes = [0.05, 0.125, 0.2]", keys.join(", ")),
+    )
 }
 
 #[test]

@@ -263,6 +263,34 @@ fn cut_events_fix_and_load_new_enriched_dofs_as_a_build_does() {
     }
 }
 
+/// The seed's beam at its first level, bottom clamped, cut by the patch
+/// `origin`, `u`, `v`, under gravity `g`, with the `[analysis]` lines given.
+fn seed_beam_case(origin: &str, u: &str, v: &str, g: &str, analysis: &str) -> String {
+    format!(
+        r#"name = "beam"
+[body]
+box = [[0.0, 0.0, 0.0], [0.03, 0.06, 0.2]]
+levels = [[2, 4, 13]]
+[material]
+young = 3.0e5
+poisson = 0.35
+density = 1070.0
+[[cut]]
+origin = {origin}
+u = {u}
+v = {v}
+[[fix]]
+min = [-inf, -inf, 0.0]
+max = [inf, inf, 0.0]
+displacement = [0.0, 0.0, 0.0]
+[gravity]
+acceleration = {g}
+[analysis]
+{analysis}
+"#
+    )
+}
+
 #[test]
 fn a_cut_through_the_beam_just_above_its_clamped_face_frees_all_above_it() {
     // The seed's beam cut through its whole section at z = 0.005 (a third
@@ -276,28 +304,12 @@ fn a_cut_through_the_beam_just_above_its_clamped_face_frees_all_above_it() {
     use xfem_cut::locate::Locator;
     use xfem_cut::run::evaluate_at;
     let text = |analysis: &str| {
-        format!(
-            r#"name = "through"
-[body]
-box = [[0.0, 0.0, 0.0], [0.03, 0.06, 0.2]]
-levels = [[2, 4, 13]]
-[material]
-young = 3.0e5
-poisson = 0.35
-density = 1070.0
-[[cut]]
-origin = [-0.01, -0.01, 0.005]
-u = [0.05, 0.0, 0.0]
-v = [0.0, 0.08, 0.0]
-[[fix]]
-min = [-inf, -inf, 0.0]
-max = [inf, inf, 0.0]
-displacement = [0.0, 0.0, 0.0]
-[gravity]
-acceleration = [9.81, 0.0, 0.0]
-[analysis]
-{analysis}
-"#
+        seed_beam_case(
+            "[-0.01, -0.01, 0.005]",
+            "[0.05, 0.0, 0.0]",
+            "[0.0, 0.08, 0.0]",
+            "[9.81, 0.0, 0.0]",
+            analysis,
         )
     };
     let path = Path::new("through.toml");
@@ -348,28 +360,12 @@ fn a_part_held_beyond_the_cut_where_it_crosses_a_clamped_face_is_no_free_part() 
     use xfem_cut::locate::Locator;
     use xfem_cut::run::evaluate_at;
     let text = |analysis: &str| {
-        format!(
-            r#"name = "slab"
-[body]
-box = [[0.0, 0.0, 0.0], [0.03, 0.06, 0.2]]
-levels = [[2, 4, 13]]
-[material]
-young = 3.0e5
-poisson = 0.35
-density = 1070.0
-[[cut]]
-origin = [0.004, -0.01, -0.01]
-u = [0.0, 0.08, 0.0]
-v = [0.0, 0.0, 0.22]
-[[fix]]
-min = [-inf, -inf, 0.0]
-max = [inf, inf, 0.0]
-displacement = [0.0, 0.0, 0.0]
-[gravity]
-acceleration = [1.0, 9.81, 0.0]
-[analysis]
-{analysis}
-"#
+        seed_beam_case(
+            "[0.004, -0.01, -0.01]",
+            "[0.0, 0.08, 0.0]",
+            "[0.0, 0.0, 0.22]",
+            "[1.0, 9.81, 0.0]",
+            analysis,
         )
     };
     let path = Path::new("slab.toml");

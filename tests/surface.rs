@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{bar, case, model, relative_difference, solve};
+use common::{bar, box_triangles, case, model, relative_difference, run_scene, solve};
 use nalgebra::{Point3, Vector3};
 use xfem_cut::blade::same_setup;
 use xfem_cut::cut::{setup_cut, CutInput, CutSurface, PlanarPatch, DEFAULT_SNAP};
@@ -549,28 +549,7 @@ fn nodes_far_from_a_triangle_surface_take_stand_in_level_sets_that_change_nothin
         let r = nalgebra::Rotation3::from_axis_angle(&Vector3::z_axis(), t)
             * nalgebra::Rotation3::from_axis_angle(&Vector3::x_axis(), 0.05);
         let half = Vector3::new(0.22, 0.17, 0.5);
-        let v: Vec<Point3<f64>> = (0..8)
-            .map(|k| {
-                let s = Vector3::new(
-                    if k & 1 == 1 { 1.0 } else { -1.0 },
-                    if k & 2 == 2 { 1.0 } else { -1.0 },
-                    if k & 4 == 4 { 1.0 } else { -1.0 },
-                );
-                Point3::from(c + r * s.component_mul(&half))
-            })
-            .collect();
-        let mut tris = Vec::new();
-        for q in [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ] {
-            tris.push([q[0], q[1], q[2]]);
-            tris.push([q[0], q[2], q[3]]);
-        }
+        let (v, tris) = box_triangles(c, half, r);
         TriangleSurface::new(v, tris, std::path::Path::new("box")).unwrap()
     };
     let (s, all_closed) = (arc(), EveryNode(&closed));
@@ -686,34 +665,13 @@ fn a_part_a_closed_surface_frees_beside_a_clamped_face_falls_with_g() {
     // closed surfaces through the CLI). Newmark with β = 1/4 falls exactly
     // ½ g t², Tet4 and Tet10, consistent and lumped mass (Tet4; Tet10's
     // lumped mass moves a freed part's nodes only to ~1e-2).
-    use xfem_cut::blade::{run_dynamic, CutSet};
     use xfem_cut::run::evaluate_at;
-    use xfem_cut::scene::{Analysis, Scene};
-    let (lo, hi) = (
-        Vector3::new(0.031, 0.031, 0.005),
-        Vector3::new(0.069, 0.069, 0.035),
+    use xfem_cut::scene::Scene;
+    let (v, tris) = box_triangles(
+        Vector3::new(0.05, 0.05, 0.02),
+        Vector3::new(0.019, 0.019, 0.015),
+        nalgebra::Rotation3::identity(),
     );
-    let v: Vec<Point3<f64>> = (0..8)
-        .map(|k| {
-            Point3::new(
-                if k & 1 == 0 { lo.x } else { hi.x },
-                if k & 2 == 0 { lo.y } else { hi.y },
-                if k & 4 == 0 { lo.z } else { hi.z },
-            )
-        })
-        .collect();
-    let mut tris = Vec::new();
-    for q in [
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-    ] {
-        tris.push([q[0], q[1], q[2]]);
-        tris.push([q[0], q[2], q[3]]);
-    }
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("box.stl"), ascii_stl(&v, &tris)).unwrap();
     let g = Vector3::new(3.0, -4.0, 5.0);
@@ -751,17 +709,10 @@ mass = "{mass}"
         let path = dir.path().join("freed.toml");
         std::fs::write(&path, &text).unwrap();
         let scene = Scene::load(&path).unwrap();
-        let mesh = scene.mesh(0).unwrap();
-        let cuts = CutSet::from_scene(&scene).unwrap();
-        let (fixed, tractions) = scene.selections(&mesh).unwrap();
-        let build = |cut| scene.model_input(mesh.clone(), cut, fixed.clone(), &tractions);
-        let Analysis::Dynamic { options, .. } = scene.analysis else {
-            panic!("a dynamic scene")
-        };
-        let run = run_dynamic(&cuts, &mesh, &build, options, |_, _, _| {}).unwrap();
-        let t = options.dt * options.steps as f64;
+        let run = run_scene(&scene);
+        let t = 0.01 * 20.0; // the scene's dt × steps
         let expected = g * (0.5 * t * t);
-        let locator = Locator::new(&mesh);
+        let locator = Locator::new(&run.model.mesh);
         // Nodes of the freed part (inside the box) and one of the clamped
         // part beside it (its displacement is the body's sag, ~1e-4 m).
         let inside = [Point3::new(0.04, 0.04, 0.02), Point3::new(0.06, 0.06, 0.02)];
@@ -792,37 +743,15 @@ fn a_closed_surface_cuts_every_element_its_level_set_crosses() {
     // section lay beside the box uncut, and the part inside stayed joined
     // to the body through it (1e-5 m of the ½ g t² = 0.14 m it falls now;
     // found by the fuzz of closed surfaces through the CLI).
-    use xfem_cut::blade::{run_dynamic, CutSet};
     use xfem_cut::run::evaluate_at;
-    use xfem_cut::scene::{Analysis, Scene};
+    use xfem_cut::scene::Scene;
     let r = nalgebra::Rotation3::from_axis_angle(&Vector3::x_axis(), 0.2)
         * nalgebra::Rotation3::from_axis_angle(&Vector3::z_axis(), 0.2);
     let (c, half) = (
         Vector3::new(0.025, 0.02, 0.022),
         Vector3::new(0.013, 0.0065, 0.0055),
     );
-    let v: Vec<Point3<f64>> = (0..8)
-        .map(|k| {
-            let s = Vector3::new(
-                if k & 1 == 1 { 1.0 } else { -1.0 },
-                if k & 2 == 2 { 1.0 } else { -1.0 },
-                if k & 4 == 4 { 1.0 } else { -1.0 },
-            );
-            Point3::from(c + r * s.component_mul(&half))
-        })
-        .collect();
-    let mut tris = Vec::new();
-    for q in [
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-    ] {
-        tris.push([q[0], q[1], q[2]]);
-        tris.push([q[0], q[2], q[3]]);
-    }
+    let (v, tris) = box_triangles(c, half, r);
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("box.stl"), ascii_stl(&v, &tris)).unwrap();
     let path = dir.path().join("long.toml");
@@ -853,18 +782,10 @@ mass = "consistent"
 "#,
     )
     .unwrap();
-    let scene = Scene::load(&path).unwrap();
-    let mesh = scene.mesh(0).unwrap();
-    let cuts = CutSet::from_scene(&scene).unwrap();
-    let (fixed, tractions) = scene.selections(&mesh).unwrap();
-    let build = |cut| scene.model_input(mesh.clone(), cut, fixed.clone(), &tractions);
-    let Analysis::Dynamic { options, .. } = scene.analysis else {
-        panic!("a dynamic scene")
-    };
-    let run = run_dynamic(&cuts, &mesh, &build, options, |_, _, _| {}).unwrap();
+    let run = run_scene(&Scene::load(&path).unwrap());
     let expected = Vector3::new(3.0, -4.0, 5.0) * (0.5 * 0.2f64.powi(2));
     let x = Point3::new(0.08 / 3.0, 0.021, 0.021);
-    let u = evaluate_at(&run.model, &Locator::new(&mesh), &run.state.d, &x).unwrap();
+    let u = evaluate_at(&run.model, &Locator::new(&run.model.mesh), &run.state.d, &x).unwrap();
     let err = (u - expected).norm() / expected.norm();
     println!("u at the enclosed vertex {u:?}, ½ g t² {expected:?}: {err:.1e}");
     assert!(err <= 1e-8, "{err:e}");
@@ -881,28 +802,7 @@ fn stand_ins_inside_a_large_closed_surface_take_its_inside() {
     let r = nalgebra::Rotation3::from_axis_angle(&Vector3::z_axis(), 0.1)
         * nalgebra::Rotation3::from_axis_angle(&Vector3::x_axis(), 0.05);
     let (c, half) = (Vector3::new(0.5, 0.5, 1.0), Vector3::new(0.42, 0.41, 0.93));
-    let v: Vec<Point3<f64>> = (0..8)
-        .map(|k| {
-            let s = Vector3::new(
-                if k & 1 == 1 { 1.0 } else { -1.0 },
-                if k & 2 == 2 { 1.0 } else { -1.0 },
-                if k & 4 == 4 { 1.0 } else { -1.0 },
-            );
-            Point3::from(c + r * s.component_mul(&half))
-        })
-        .collect();
-    let mut tris = Vec::new();
-    for q in [
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-    ] {
-        tris.push([q[0], q[1], q[2]]);
-        tris.push([q[0], q[2], q[3]]);
-    }
+    let (v, tris) = box_triangles(c, half, r);
     let closed = TriangleSurface::new(v, tris, std::path::Path::new("box")).unwrap();
     let every = EveryNode(&closed);
     // (Tet4: the Tet10 meshes of this size leave no far node inside.)

@@ -111,3 +111,51 @@ pub fn patch_triangles(
     }
     (points, tris)
 }
+
+/// A closed box surface (12 triangles, normals outward): centre `c`,
+/// half-sides `half` along the axes turned by `r`. Vertex k has the
+/// half-side's + end along axis a where bit a of k is set.
+pub fn box_triangles(
+    c: Vector3<f64>,
+    half: Vector3<f64>,
+    r: nalgebra::Rotation3<f64>,
+) -> (Vec<Point3<f64>>, Vec<[usize; 3]>) {
+    let v: Vec<Point3<f64>> = (0..8)
+        .map(|k| {
+            let s = Vector3::new(
+                if k & 1 == 1 { 1.0 } else { -1.0 },
+                if k & 2 == 2 { 1.0 } else { -1.0 },
+                if k & 4 == 4 { 1.0 } else { -1.0 },
+            );
+            Point3::from(c + r * s.component_mul(&half))
+        })
+        .collect();
+    let mut tris = Vec::new();
+    for q in [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ] {
+        tris.push([q[0], q[1], q[2]]);
+        tris.push([q[0], q[2], q[3]]);
+    }
+    (v, tris)
+}
+
+/// Runs a dynamic scene at its first level as the CLI does (its blades
+/// cutting while it runs): the final model, state and sweep.
+pub fn run_scene(scene: &xfem_cut::scene::Scene) -> xfem_cut::blade::Progressive {
+    use xfem_cut::blade::{run_dynamic, CutSet};
+    use xfem_cut::scene::Analysis;
+    let mesh = scene.mesh(0).unwrap();
+    let cuts = CutSet::from_scene(scene).unwrap();
+    let (fixed, tractions) = scene.selections(&mesh).unwrap();
+    let build = |cut| scene.model_input(mesh.clone(), cut, fixed.clone(), &tractions);
+    let Analysis::Dynamic { options, .. } = scene.analysis else {
+        panic!("a dynamic scene")
+    };
+    run_dynamic(&cuts, &mesh, &build, options, |_, _, _| {}).unwrap()
+}
