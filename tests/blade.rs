@@ -2364,8 +2364,8 @@ fn a_projection_onto_unchanged_functions_keeps_the_moving_state() {
         ..one_blade(blade)
     };
     let g = Vector3::new(-9.81, 0.0, 0.0);
-    // The edge at y: the front generic, or 1e-4 and 1e-7 of an element
-    // beside the node layer y = 1/2 (Tet10: 0 is a layer too).
+    // The edge at y: the front generic (y = 0.1), or 3.3e-5 and 3.3e-8
+    // beside the node layer y = 1/2 (elements 0.25 and 0.5 across in y).
     let at = |y: f64| 0.02 + 0.28 * (y + 0.5) / 2.0;
     let times = [at(0.1), at(0.5 + 1e-4 / 3.0), at(0.5 - 1e-7 / 3.0)];
     for kind in [ElementKind::Tet4, ElementKind::Tet10] {
