@@ -627,6 +627,9 @@ impl Warp {
 pub struct Newmark<'m> {
     model: &'m Model,
     opts: DynamicOptions,
+    /// External force at full load: the model's, or with the lumped mass
+    /// [`Model::lumped_load`] where that differs (Tet10 parts that float free).
+    load: Vec<f64>,
     chol: Cholesky,
     ws: Workspace,
     mass: MassOperator,
@@ -879,9 +882,16 @@ impl<'m> Newmark<'m> {
                     .expect("diagonal is in the pattern")
             })
             .collect();
+        let load = match opts.mass {
+            MassKind::Lumped => model.lumped_load(),
+            MassKind::Consistent => None,
+        }
+        .unwrap_or_else(|| model.load.clone());
+        let load_norm = norm(&load);
         Ok(Newmark {
             model,
             opts,
+            load,
             chol,
             ws: Workspace::new(model),
             mass: MassOperator::new(model, opts.mass),
@@ -906,7 +916,7 @@ impl<'m> Newmark<'m> {
             },
             damping_current: false,
             steps_since_factor: 0,
-            load_norm: norm(&model.load),
+            load_norm,
             round_off: crate::statics::residual_scale_floor(model, opts.tolerance),
             factored: false,
             pcg: Pcg::new(model.n_free),
@@ -1111,7 +1121,7 @@ impl<'m> Newmark<'m> {
             },
         );
         for i in 0..self.r_full.len() {
-            self.r_full[i] = model.load[i] - self.f_int[i];
+            self.r_full[i] = self.load[i] - self.f_int[i];
         }
         gather_free(model, &self.r_full, &mut self.r_free);
         // M a = r on the free DOFs: M on the pattern (the lumped one has
@@ -1162,7 +1172,7 @@ impl<'m> Newmark<'m> {
         );
         self.mass.product(self.model, &self.state.v, &mut self.mv);
         let kinetic = 0.5 * dot(&self.state.v, &self.mv);
-        let external_work = dot(&self.model.load, &self.state.d);
+        let external_work = dot(&self.load, &self.state.d);
         Energies {
             kinetic,
             strain: self.strain_energy,
@@ -1525,7 +1535,7 @@ impl<'m> Newmark<'m> {
         // r = f_ext − f_int − M a − D v.
         self.mass.product(model, &self.a_new, &mut self.mv);
         for i in 0..d.len() {
-            self.r_full[i] = model.load[i] - self.f_int[i] - self.mv[i];
+            self.r_full[i] = self.load[i] - self.f_int[i] - self.mv[i];
         }
         // Force scale of the residual: loads, internal and inertial forces,
         // not below their round-off level.

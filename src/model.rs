@@ -181,6 +181,11 @@ pub struct Model {
     pub lumped_coupling: Option<Vec<f64>>,
     /// Consistent mass, lower triangle on the pattern, if built.
     pub consistent_mass: Option<Vec<f64>>,
+    /// Per element (Tet10 with the lumped mass built, else empty), per side
+    /// (slot 0: side 0 or +1, slot 1: side −1) and node: its cells' lumped
+    /// mass less ρ ∫ N_k, what the gravity load of a part that floats free
+    /// changes by to be its lumped mass times g ([`Model::lumped_load`]).
+    lump_residual: Vec<[[f64; 10]; 2]>,
     /// Per node (Tet10 with tip enrichment only, else empty): the vertices of
     /// the edge a mid-node sits on when one of them is tip-enriched.
     pub mid_edge: Vec<Option<[u32; 2]>>,
@@ -286,12 +291,17 @@ impl Model {
         let mut flat = FlatElements::with_capacity(mesh.n_elements(), mesh.cells.len());
         let mut globals = Globals::new(n_shape, cut.as_ref(), need_mass);
         let mut masses = Vec::with_capacity(if need_mass { mesh.n_elements() } else { 0 });
+        let keep_residual = need_mass && mesh.kind == ElementKind::Tet10;
+        let mut lump_residual = Vec::new();
         for e in 0..mesh.n_elements() {
             let cells = element_cells(&mesh, cut.as_ref(), e)?;
             let block = integrator.block(&cells, Some(&mut globals));
             flat.push_block(e, &block);
             if need_mass {
                 masses.push(block.mass);
+            }
+            if keep_residual {
+                lump_residual.push(block.lump_residual);
             }
         }
         let mut fixed = fixed;
@@ -356,6 +366,7 @@ impl Model {
             lumped_mass: globals.lumped,
             lumped_coupling: globals.coupling,
             consistent_mass,
+            lump_residual,
             mid_edge,
             tractions: tractions.to_vec(),
             contributions: Default::default(),
@@ -1371,6 +1382,9 @@ struct ElementBlock {
     lumped: Vec<f64>,
     coupling: Vec<f64>,
     mass: Vec<f64>,
+    /// Tet10 with mass: per side slot and node, the cells' lumped mass less
+    /// ρ ∫ N_k ([`Model::lump_residual`]).
+    lump_residual: [[f64; 10]; 2],
     /// With an old field to fit ([`Integrator::old`]), a tip element's
     /// integrals for the event's projection.
     fit: Option<Box<TipFit>>,
@@ -1525,6 +1539,7 @@ impl Integrator<'_> {
             lumped: Vec::new(),
             coupling: Vec::new(),
             mass: Vec::new(),
+            lump_residual: [[0.0; 10]; 2],
             fit: None,
         };
         if self.need_mass {
@@ -1899,9 +1914,15 @@ impl Integrator<'_> {
         let nn = self.mesh.kind.nodes();
         let volumes: Vec<f64> = cells.cells.iter().map(|c| c.volume).collect();
         let shares = lump_element_mass(self.mesh.kind, self.rho, &volumes, int_n, int_n2);
-        for (cell, share) in cells.cells.iter().zip(&shares) {
+        for ((cell, share), n) in cells.cells.iter().zip(&shares).zip(int_n) {
             for k in 0..nn {
                 sink.lumped(block, k, share[k]);
+            }
+            if self.mesh.kind == ElementKind::Tet10 {
+                let slot = &mut block.lump_residual[usize::from(cell.side < 0)];
+                for k in 0..nn {
+                    slot[k] += share[k] - self.rho * n[k];
+                }
             }
             for (j, &k) in cells.heaviside.iter().enumerate() {
                 let p = cells.psi(cell, k);
@@ -2523,6 +2544,94 @@ impl Model {
     /// the node: where the cut crosses a fixed boundary, [`enriched_fixes`]).
     pub fn free_parts(&self) -> Vec<String> {
         let mesh = &self.mesh;
+        let (regions, parts) = self.parts();
+        let mut free: Vec<String> = parts
+            .into_iter()
+            .filter_map(|part| {
+                let n = part.regions.len();
+                let c = part.regions.iter().fold(Vector3::zeros(), |s, &r| {
+                    s + mesh
+                        .vertex_points(regions[r].0)
+                        .iter()
+                        .fold(Vector3::zeros(), |s, p| s + p.coords)
+                        / 4.0
+                }) / n as f64;
+                let at = format!(
+                    "{n} element regions around ({:.4}, {:.4}, {:.4})",
+                    c.x, c.y, c.z
+                );
+                let mut nodes = part.held;
+                if nodes.is_empty() {
+                    return Some(format!("{at} touch no [[fix]]"));
+                }
+                nodes.sort_unstable();
+                nodes.dedup();
+                self.free_rigid_motion(&nodes).map(|motion| {
+                    format!("{at} are held by [[fix]] components that leave them free to {motion}")
+                })
+            })
+            .collect();
+        free.sort();
+        free
+    }
+
+    /// The gravity load for the lumped mass: [`Model::load`] with each part
+    /// that touches no Dirichlet boundary loaded by its lumped mass times g
+    /// instead of ρ g ∫ φ_a, so that it falls with g exactly. The two
+    /// differ on Tet10 only (HRZ masses, [`crate::mass::lump_cell_mass`];
+    /// Tet4's lumped mass is the row sum, ρ ∫ N_k): there, under the
+    /// consistent load, a part that floats free strained as it fell (its
+    /// nodes up to 8e-2 off ½ g t² for a part of a few coarse elements,
+    /// 24 % on a soft bar), a self-equilibrated load of its own weight. Parts held by
+    /// a boundary keep the consistent load, so that a damped dynamic scene
+    /// settles on the static solution. `None` where nothing changes (Tet4,
+    /// no part floats free, no gravity, a body force beyond gravity, or no
+    /// lumped mass built). Tip functions in a floating part keep their
+    /// consistent load.
+    pub fn lumped_load(&self) -> Option<Vec<f64>> {
+        if self.lump_residual.is_empty() || self.body_force {
+            return None;
+        }
+        let g = self.gravity?;
+        let (regions, parts) = self.parts();
+        let floating: Vec<(usize, i8)> = parts
+            .into_iter()
+            .filter(|p| p.held.is_empty())
+            .flat_map(|p| p.regions.into_iter().map(|r| regions[r]))
+            .collect();
+        if floating.is_empty() {
+            return None;
+        }
+        let n_nodes = self.mesh.n_nodes();
+        let mut load = self.load.clone();
+        for (e, side) in floating {
+            let residual = &self.lump_residual[e][usize::from(side < 0)];
+            for (k, &node) in self.mesh.element(e).iter().enumerate() {
+                let r = residual[k];
+                for c in 0..3 {
+                    load[3 * node + c] += r * g[c];
+                }
+                let enriched = self.cut.as_ref().and_then(|c| {
+                    let p = psi(side, c.node_side[node]);
+                    c.enriched[node]
+                        .filter(|_| side != 0 && p != 0.0)
+                        .map(|j| (j, p))
+                });
+                if let Some((j, p)) = enriched {
+                    for c in 0..3 {
+                        load[3 * (n_nodes + j) + c] += p * r * g[c];
+                    }
+                }
+            }
+        }
+        Some(load)
+    }
+
+    /// The body's regions ((element, side) pairs) and its parts: the
+    /// regions joined through the nodes where they see the same DOFs, with
+    /// the nodes (and components) where each part is held ([`Model::free_parts`]).
+    fn parts(&self) -> (Vec<(usize, i8)>, Vec<Part>) {
+        let mesh = &self.mesh;
         let mut regions: Vec<(usize, i8)> = Vec::new();
         for e in 0..mesh.n_elements() {
             match self.cut.as_ref().map(|c| &c.elements[e]) {
@@ -2574,43 +2683,23 @@ impl Model {
                 }
             }
         }
-        // Per part: its held nodes, regions and the sum of their centroids.
-        type Part = (Vec<(usize, [bool; 3])>, usize, Vector3<f64>);
-        let mut parts: std::collections::HashMap<usize, Part> = std::collections::HashMap::new();
+        // Parts in the order of their first region.
+        let mut part_of_root = vec![usize::MAX; regions.len()];
+        let mut parts: Vec<Part> = Vec::new();
         for (r, nodes) in held.into_iter().enumerate() {
             let root = find(&mut parent, r);
-            let entry = parts
-                .entry(root)
-                .or_insert((Vec::new(), 0, Vector3::zeros()));
-            entry.0.extend(nodes);
-            entry.1 += 1;
-            let c = mesh
-                .vertex_points(regions[r].0)
-                .iter()
-                .fold(Vector3::zeros(), |s, p| s + p.coords)
-                / 4.0;
-            entry.2 += c;
+            if part_of_root[root] == usize::MAX {
+                part_of_root[root] = parts.len();
+                parts.push(Part {
+                    regions: Vec::new(),
+                    held: Vec::new(),
+                });
+            }
+            let part = &mut parts[part_of_root[root]];
+            part.regions.push(r);
+            part.held.extend(nodes);
         }
-        let mut free: Vec<String> = parts
-            .into_values()
-            .filter_map(|(mut nodes, n, c)| {
-                let c = c / n as f64;
-                let at = format!(
-                    "{n} element regions around ({:.4}, {:.4}, {:.4})",
-                    c.x, c.y, c.z
-                );
-                if nodes.is_empty() {
-                    return Some(format!("{at} touch no [[fix]]"));
-                }
-                nodes.sort_unstable();
-                nodes.dedup();
-                self.free_rigid_motion(&nodes).map(|motion| {
-                    format!("{at} are held by [[fix]] components that leave them free to {motion}")
-                })
-            })
-            .collect();
-        free.sort();
-        free
+        (regions, parts)
     }
 
     /// The rigid motion that the prescribed components of `nodes` leave
@@ -2668,6 +2757,13 @@ impl Model {
 
 // ---------------------------------------------------------------------------
 // A cut event: the model of a grown cut from the model of the old one.
+
+/// A part of the body ([`Model::parts`]): its regions (indices into the
+/// region list) and the nodes, with components, where it is held.
+struct Part {
+    regions: Vec<usize>,
+    held: Vec<(usize, [bool; 3])>,
+}
 
 /// How [`Model::update_cut_mapped`] maps the old model onto the new one.
 #[derive(Debug, Clone)]
@@ -3005,9 +3101,15 @@ impl Model {
             Ok::<_, ModelError>((old_block, integrator.block(&cells, None)))
         });
         let mut blocks = blocks.into_iter();
+        let keep_residual = !self.lump_residual.is_empty();
+        let mut lump_residual =
+            Vec::with_capacity(if keep_residual { mesh.n_elements() } else { 0 });
         for e in 0..mesh.n_elements() {
             let el = &self.elements[e];
             if kept[e] {
+                if keep_residual {
+                    lump_residual.push(self.lump_residual[e]);
+                }
                 let ids: Vec<u32> = self.shape_ids[el.shapes.clone()]
                     .iter()
                     .map(|&s| map[s as usize])
@@ -3033,6 +3135,9 @@ impl Model {
                 continue;
             }
             let (old_block, block) = blocks.next().expect("one block per changed element")?;
+            if keep_residual {
+                lump_residual.push(block.lump_residual);
+            }
             if let Some(mut old_block) = old_block {
                 for s in old_block.shape_ids.iter_mut() {
                     *s = map[*s as usize];
@@ -3282,6 +3387,7 @@ impl Model {
             lumped_mass: globals.lumped,
             lumped_coupling: globals.coupling,
             consistent_mass,
+            lump_residual,
             mid_edge,
             tractions: self.tractions.clone(),
             contributions: Default::default(),

@@ -114,7 +114,7 @@ impl Plan {
             Some(MassKind::Lumped) if model.mesh.kind == crate::mesh::ElementKind::Tet10 => add(
                 "mass (lumped, eq. 81-82)",
                 true,
-                "dynamic scene; Tet10: HRZ (cut elements: per cell, balanced to the element's node masses): a freed part's centre falls with g, its nodes only to ~1e-3 under a consistent load (up to 8e-2 for a part of a few coarse elements); mass = \"consistent\" is exact",
+                "dynamic scene; Tet10: HRZ (cut elements: per cell, balanced to the element's node masses); a part that floats free takes its lumped mass times g as its gravity load and falls with g, held parts keep the consistent load",
             ),
             Some(MassKind::Lumped) => add("mass (lumped, eq. 81-82)", true, "dynamic scene"),
             Some(MassKind::Consistent) => add(
