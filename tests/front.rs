@@ -3,6 +3,8 @@
 //! whole outer boundary, and the X-FEM solution's L2 and energy errors under
 //! refinement for geometric tip, topological tip and extended cuts.
 
+mod common;
+
 use nalgebra::{Matrix3, Point3, Vector3};
 use xfem_cut::cut::{setup_cut, Blending, CutInput, CutSetup, FrontMode, PlanarPatch};
 use xfem_cut::front::N_BRANCH;
@@ -1551,5 +1553,83 @@ fn ramp_blending_solves_a_free_body() {
         );
         println!("{div:?}: top ux error {e0:.3e} ({n0} DOFs) without the ramp, {e1:.3e} ({n1} DOFs) with it");
         assert!(e1 < e0, "{div:?}: {e1} vs {e0}");
+    }
+}
+
+/// A crack on a node layer whose front runs along a node line is a crack of
+/// the conforming mesh: X-FEM on the uncut mesh (`front = "extend"`, the
+/// plane through the nodes) equals FEM on the same mesh with the crack
+/// face's nodes duplicated below it (front-line nodes shared), node for
+/// node, seen from each side: Tet4 and Tet10, gravity and the top face
+/// moved, linear and corotational.
+#[test]
+fn a_crack_on_a_node_layer_ending_on_a_node_line_equals_the_mesh_with_its_nodes_duplicated() {
+    use common::{bar, model, solve};
+    use xfem_cut::cut::DEFAULT_SNAP;
+    let (z0, x_front) = (1.0, 0.5);
+    let patch = PlanarPatch {
+        origin: Point3::new(-0.1, -0.1, z0),
+        u: Vector3::new(x_front + 0.1, 0.0, 0.0),
+        v: Vector3::new(0.0, 1.2, 0.0),
+    };
+    let g = Vector3::new(3.0, -2.0, -9.81);
+    let top = Vector3::new(0.05, 0.03, 0.04);
+    for tet10 in [false, true] {
+        let mesh = if tet10 {
+            bar([2, 2, 4]).to_tet10()
+        } else {
+            bar([4, 4, 8])
+        };
+        // The cracked mesh: nodes on the layer behind the front line get a
+        // twin, which the elements below the layer take instead.
+        let on_face = |p: &Point3<f64>| p.z == z0 && p.x < x_front - 1e-12;
+        let mut nodes = mesh.nodes.clone();
+        let mut twin = vec![usize::MAX; mesh.n_nodes()];
+        for (i, p) in mesh.nodes.iter().enumerate() {
+            if on_face(p) {
+                twin[i] = nodes.len();
+                nodes.push(*p);
+            }
+        }
+        let nn = mesh.kind.nodes();
+        let mut cells = mesh.cells.clone();
+        for e in 0..mesh.n_elements() {
+            let conn = &mut cells[nn * e..nn * (e + 1)];
+            let below = conn.iter().map(|&i| mesh.nodes[i].z).sum::<f64>() / (nn as f64) < z0;
+            if below {
+                for i in conn.iter_mut().filter(|i| twin[**i] != usize::MAX) {
+                    *i = twin[*i];
+                }
+            }
+        }
+        let cracked = TetMesh {
+            kind: mesh.kind,
+            nodes,
+            cells,
+        };
+        let cut = setup_cut(&mesh, &[CutInput::extend(&patch, DEFAULT_SNAP)]).unwrap();
+        for formulation in [Formulation::Linear, Formulation::Corotational] {
+            let x = model(&mesh, Some(cut.clone()), formulation, g, Some(top), false).unwrap();
+            let f = model(&cracked, None, formulation, g, Some(top), false).unwrap();
+            let (dx, df) = (solve(&x), solve(&f));
+            let (mut worst, mut scale): (f64, f64) = (0.0, 0.0);
+            for i in 0..mesh.n_nodes() {
+                let up = Vector3::new(df[3 * i], df[3 * i + 1], df[3 * i + 2]);
+                let j = if twin[i] == usize::MAX { i } else { twin[i] };
+                let down = Vector3::new(df[3 * j], df[3 * j + 1], df[3 * j + 2]);
+                for (side, want) in [(1i8, up), (-1, down)] {
+                    let got = x.node_displacement(&dx, i, side);
+                    worst = worst.max((got - want).norm());
+                    scale = scale.max(want.norm());
+                }
+            }
+            println!(
+                "{:?} {formulation:?}: {} twins, X-FEM vs the cracked mesh {:.1e} of {scale:.2e}",
+                mesh.kind,
+                twin.iter().filter(|&&t| t != usize::MAX).count(),
+                worst / scale
+            );
+            assert!(worst <= 1e-9 * scale, "{:e}", worst / scale);
+        }
     }
 }
