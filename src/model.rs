@@ -2627,6 +2627,11 @@ impl Model {
         Some(load)
     }
 
+    /// How many parts touch no Dirichlet boundary ([`Model::lumped_load`]).
+    pub fn floating_parts(&self) -> usize {
+        self.parts().1.iter().filter(|p| p.held.is_empty()).count()
+    }
+
     /// The body's regions ((element, side) pairs) and its parts: the
     /// regions joined through the nodes where they see the same DOFs, with
     /// the nodes (and components) where each part is held ([`Model::free_parts`]).

@@ -114,7 +114,14 @@ impl Plan {
             Some(MassKind::Lumped) if model.mesh.kind == crate::mesh::ElementKind::Tet10 => add(
                 "mass (lumped, eq. 81-82)",
                 true,
-                "dynamic scene; Tet10: HRZ (cut elements: per cell, balanced to the element's node masses); a part that floats free takes its lumped mass times g as its gravity load and falls with g, held parts keep the consistent load",
+                &format!(
+                    "dynamic scene; Tet10: HRZ (cut elements: per cell, balanced to the element's node masses); a part that floats free takes its lumped mass times g as its gravity load and falls with g, held parts keep the consistent load ({})",
+                    match (progressive, model.floating_parts()) {
+                        (true, _) => "parts a blade frees: from the event that frees them".to_string(),
+                        (false, 0) => "no part floats free here".to_string(),
+                        (false, n) => format!("{n} part(s) float free here"),
+                    }
+                ),
             ),
             Some(MassKind::Lumped) => add("mass (lumped, eq. 81-82)", true, "dynamic scene"),
             Some(MassKind::Consistent) => add(
