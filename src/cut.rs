@@ -233,9 +233,29 @@ pub struct CutSetup {
     /// the cuts): the others lie beyond the surface's reach and took
     /// stand-ins ([`level_set_reach`]).
     pub measured: (usize, usize),
+    /// Several cuts ([`setup_cut`]): the vertex level sets (φ, ψ) of the cut
+    /// whose tip functions an element holds, where another cut's elements
+    /// hold one of its vertices (which keeps that cut's level sets in
+    /// [`CutSetup::phi`]: its side and enrichment are that cut's). Empty
+    /// for one cut.
+    pub tip_levels: std::collections::HashMap<usize, ([f64; 4], [f64; 4])>,
 }
 
 impl CutSetup {
+    /// The vertex level sets (φ, ψ) of element `e` (ψ = 0 without a front):
+    /// its tip functions' where [`CutSetup::tip_levels`] has them, else its
+    /// vertices' own.
+    pub fn vertex_levels(&self, mesh: &TetMesh, e: usize) -> ([f64; 4], [f64; 4]) {
+        if let Some(&levels) = self.tip_levels.get(&e) {
+            return levels;
+        }
+        let v = mesh.vertices(e);
+        (
+            v.map(|i| self.phi[i]),
+            v.map(|i| self.front_level.get(i).copied().unwrap_or(0.0)),
+        )
+    }
+
     /// Whether element `conn` holds tip functions: a tip node without the
     /// ramp; a node of I with it (R ≡ 0 in elements without one).
     pub fn holds_tip(&self, conn: &[usize]) -> bool {
@@ -436,13 +456,48 @@ fn merge(mesh: &TetMesh, setups: Vec<CutSetup>) -> Result<CutSetup, CutError> {
                 claim(i, some_element[i], &mut node_owner)?;
             }
         }
-        // Elements holding tip-enriched nodes read the level sets at all their nodes.
+    }
+    // Elements holding tip-enriched nodes read their cut's level sets at all
+    // their vertices. A vertex of another cut's elements keeps that cut's
+    // level sets (its side and enrichment): where the element itself is no
+    // other cut's, its vertices' level sets for the tip functions are kept
+    // with it (`tip_levels`; a tip front within two elements of another
+    // cut, e.g. a blade passing beside a cut made before). Its other nodes
+    // are its cut's.
+    let mut tip_levels = std::collections::HashMap::new();
+    for (k, s) in setups.iter().enumerate() {
         for e in 0..n_elements {
-            if mesh.element(e).iter().any(|&i| s.tip[i].is_some()) {
-                claim(e, e, &mut element_owner)?;
-                for &i in mesh.element(e) {
-                    claim(i, e, &mut node_owner)?;
+            let conn = mesh.element(e);
+            if !conn.iter().any(|&i| s.tip[i].is_some()) {
+                continue;
+            }
+            let meet = |j: usize| CutError::Meet {
+                first: j.min(k),
+                second: j.max(k),
+                element: e,
+            };
+            match element_owner[e] {
+                Some(j) if j != k => return Err(meet(j)),
+                _ => element_owner[e] = Some(k),
+            }
+            let mut foreign = false;
+            for &i in conn {
+                match node_owner[i] {
+                    // A tip node of cut k is k's alone.
+                    Some(j) if j != k && s.tip[i].is_some() => return Err(meet(j)),
+                    Some(j) if j != k => foreign = true,
+                    _ => node_owner[i] = Some(k),
                 }
+            }
+            if foreign {
+                let v = mesh.vertices(e);
+                tip_levels.insert(
+                    e,
+                    (
+                        v.map(|i| s.phi[i]),
+                        v.map(|i| s.front_level.get(i).copied().unwrap_or(0.0)),
+                    ),
+                );
             }
         }
     }
@@ -501,6 +556,7 @@ fn merge(mesh: &TetMesh, setups: Vec<CutSetup>) -> Result<CutSetup, CutError> {
         measured: setups
             .iter()
             .fold((0, 0), |(a, b), s| (a + s.measured.0, b + s.measured.1)),
+        tip_levels,
     })
 }
 
@@ -1037,6 +1093,7 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
         n_tip,
         ramp,
         measured: (far.iter().filter(|&&f| !f).count(), n_nodes),
+        tip_levels: Default::default(),
     })
 }
 

@@ -784,8 +784,7 @@ impl ElementShapes {
         } else {
             Vec::new()
         };
-        let phi = v.map(|i| cut.phi[i]);
-        let psi = v.map(|i| cut.front_level.get(i).copied().unwrap_or(0.0));
+        let (phi, psi) = cut.vertex_levels(mesh, e);
         let grad_phi = (0..4).fold(Vector3::zeros(), |s, k| s + dl[k] * phi[k]);
         let grad_psi = (0..4).fold(Vector3::zeros(), |s, k| s + dl[k] * psi[k]);
         let mut node_side = [0i8; 10];
@@ -2848,6 +2847,7 @@ pub fn same_element_model(
         if conn
             .iter()
             .any(|&i| level(a, i) != level(b, i) || a.node_side[i] != b.node_side[i])
+            || a.tip_levels.get(&e) != b.tip_levels.get(&e)
         {
             return false;
         }

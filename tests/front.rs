@@ -1633,3 +1633,152 @@ fn a_crack_on_a_node_layer_ending_on_a_node_line_equals_the_mesh_with_its_nodes_
         }
     }
 }
+
+/// A tip front whose elements reach another cut's nodes (a blade passing
+/// within two elements of a cut made before: `free_slice` by two blades on
+/// its coarsest mesh was refused): the elements holding its tip functions
+/// keep its level sets while those nodes keep the other cut's side and
+/// enrichment. The field there equals the field of the front's cut alone,
+/// value and gradient, whatever the other cut's DOFs hold; the other cut's
+/// elements see its own Heaviside functions as without the front.
+#[test]
+fn a_tip_front_beside_another_cut_evaluates_its_branch_functions_with_its_own_level_sets() {
+    use common::{bar, model};
+    use xfem_cut::cut::DEFAULT_SNAP;
+    let through = PlanarPatch {
+        origin: Point3::new(-0.1, -0.1, 0.55),
+        u: Vector3::new(1.2, 0.0, 0.1),
+        v: Vector3::new(0.0, 1.2, 0.0),
+    };
+    let partial = PlanarPatch {
+        origin: Point3::new(-0.1, -0.1, 1.2),
+        u: Vector3::new(0.55, 0.0, -0.03),
+        v: Vector3::new(0.0, 1.2, 0.0),
+    };
+    let g = Vector3::new(0.0, 0.0, -9.81);
+    for tet10 in [false, true] {
+        let mesh = if tet10 {
+            bar([3, 3, 6]).to_tet10()
+        } else {
+            bar([3, 3, 6])
+        };
+        let both = setup_cut(
+            &mesh,
+            &[
+                CutInput::extend(&through, DEFAULT_SNAP),
+                CutInput::tip(&partial, DEFAULT_SNAP, None),
+            ],
+        )
+        .expect("a tip front two elements from another cut is allowed");
+        let alone = setup_cut(&mesh, &[CutInput::tip(&partial, DEFAULT_SNAP, None)]).unwrap();
+        let first = setup_cut(&mesh, &[CutInput::extend(&through, DEFAULT_SNAP)]).unwrap();
+        assert!(
+            !both.tip_levels.is_empty(),
+            "the front's elements reach the other cut's nodes"
+        );
+        assert_eq!(both.n_tip, alone.n_tip);
+        let mb = model(
+            &mesh,
+            Some(both.clone()),
+            Formulation::Linear,
+            g,
+            None,
+            false,
+        )
+        .unwrap();
+        let ma = model(
+            &mesh,
+            Some(alone.clone()),
+            Formulation::Linear,
+            g,
+            None,
+            false,
+        )
+        .unwrap();
+        let mf = model(
+            &mesh,
+            Some(first.clone()),
+            Formulation::Linear,
+            g,
+            None,
+            false,
+        )
+        .unwrap();
+        // A field on the front's cut alone: made-up standard and tip values;
+        // the same in the model of both cuts, with made-up values of the
+        // other cut's Heaviside DOFs too.
+        let n = mesh.n_nodes();
+        let value = |k: usize| ((k as f64) * 0.7390851).sin();
+        let mut da = vec![0.0; ma.n_dofs()];
+        let mut db: Vec<f64> = (0..mb.n_dofs()).map(|k| value(k + 17)).collect();
+        for i in 0..n {
+            for c in 0..3 {
+                da[3 * i + c] = value(3 * i + c);
+                db[3 * i + c] = da[3 * i + c];
+            }
+            if let (Some(ta), Some(tb)) = (alone.tip[i], both.tip[i]) {
+                for b in 0..N_BRANCH {
+                    for c in 0..3 {
+                        let sa = n + alone.n_enriched + N_BRANCH * ta + b;
+                        let sb = n + both.n_enriched + N_BRANCH * tb + b;
+                        da[3 * sa + c] = value(1000 + 3 * sa + c);
+                        db[3 * sb + c] = da[3 * sa + c];
+                    }
+                }
+            }
+        }
+        // Largest difference; NaN (a branch function of an infinite ψ) stays.
+        let mut worst: f64 = 0.0;
+        let mut note = |d: f64| {
+            if d.is_nan() || d > worst {
+                worst = d
+            }
+        };
+        for &e in both.tip_levels.keys() {
+            let centre = mesh
+                .vertices(e)
+                .iter()
+                .fold(Vector3::zeros(), |s, &i| s + mesh.nodes[i].coords)
+                / 4.0;
+            for &i in &mesh.vertices(e) {
+                let x = Point3::from(centre * 0.7 + mesh.nodes[i].coords * 0.3);
+                let (ua, ga) = ma.field_at(&da, e, &x, 0);
+                let (ub, gb) = mb.field_at(&db, e, &x, 0);
+                note((ua - ub).norm());
+                note((ga - gb).norm());
+            }
+        }
+        // The other cut's elements: its Heaviside field as without the front.
+        let mut df = vec![0.0; mf.n_dofs()];
+        for i in 0..n {
+            for c in 0..3 {
+                df[3 * i + c] = db[3 * i + c];
+            }
+            if let (Some(jf), Some(jb)) = (first.enriched[i], both.enriched[i]) {
+                for c in 0..3 {
+                    df[3 * (n + jf) + c] = db[3 * (n + jb) + c];
+                }
+            }
+        }
+        let mut cut_elements = 0;
+        for e in 0..mesh.n_elements() {
+            if matches!(first.elements[e], xfem_cut::cut::ElementCut::Uncut) {
+                continue;
+            }
+            cut_elements += 1;
+            for (x, _, side) in mf.field_points(e) {
+                let (uf, gf) = mf.field_at(&df, e, &x, side);
+                let (ub, gb) = mb.field_at(&db, e, &x, side);
+                note((uf - ub).norm());
+                note((gf - gb).norm());
+            }
+        }
+        println!(
+            "{:?}: {} elements hold the front's level sets beside the other cut's nodes; {cut_elements} elements of the other cut; largest difference {worst:.1e}",
+            mesh.kind,
+            both.tip_levels.len()
+        );
+        assert!(cut_elements > 0);
+        assert!(worst <= 1e-12, "{worst:e}");
+    }
+}
