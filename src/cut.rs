@@ -501,11 +501,27 @@ fn merge(mesh: &TetMesh, setups: Vec<CutSetup>) -> Result<CutSetup, CutError> {
             }
         }
     }
-    // Nodes of no cut keep the first cut's level set (it only picks a side
-    // inside uncut elements, whose field has no enrichment).
-    let phi: Vec<f64> = (0..n_nodes)
-        .map(|i| setups[node_owner[i].unwrap_or(0)].phi[i])
+    // Nodes of no cut take the level sets of the cut whose front is nearest
+    // (else the first cut's): they pick no side of any enrichment, but the
+    // rules of uncut elements refine towards a front by them (a cut event's
+    // projection integrates the old field's branch functions there). The
+    // first cut's, whatever its distance, made two orders of the same cuts
+    // differ: a blade beside a cut without a front, listed second, left its
+    // ψ infinite at those nodes, and the fit changed the trajectory by 6e-6.
+    let nearest_front = |i: usize| {
+        let distance = |s: &CutSetup| match s.front_level.get(i) {
+            Some(&g) => s.phi[i].hypot(g),
+            None => f64::INFINITY,
+        };
+        (0..setups.len())
+            .min_by(|&a, &b| distance(&setups[a]).total_cmp(&distance(&setups[b])))
+            .filter(|&k| distance(&setups[k]).is_finite())
+            .unwrap_or(0)
+    };
+    let owner: Vec<usize> = (0..n_nodes)
+        .map(|i| node_owner[i].unwrap_or_else(|| nearest_front(i)))
         .collect();
+    let phi: Vec<f64> = (0..n_nodes).map(|i| setups[owner[i]].phi[i]).collect();
     let node_side = phi.iter().map(|&p| if p >= 0.0 { 1 } else { -1 }).collect();
     let mut enriched = vec![None; n_nodes];
     let mut n_enriched = 0;
@@ -536,7 +552,7 @@ fn merge(mesh: &TetMesh, setups: Vec<CutSetup>) -> Result<CutSetup, CutError> {
     let front_level = if any_front {
         (0..n_nodes)
             .map(|i| {
-                let s = &setups[node_owner[i].unwrap_or(0)];
+                let s = &setups[owner[i]];
                 s.front_level.get(i).copied().unwrap_or(f64::INFINITY)
             })
             .collect()
