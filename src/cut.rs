@@ -490,14 +490,7 @@ fn merge(mesh: &TetMesh, setups: Vec<CutSetup>) -> Result<CutSetup, CutError> {
                 }
             }
             if foreign {
-                let v = mesh.vertices(e);
-                tip_levels.insert(
-                    e,
-                    (
-                        v.map(|i| s.phi[i]),
-                        v.map(|i| s.front_level.get(i).copied().unwrap_or(0.0)),
-                    ),
-                );
+                tip_levels.insert(e, s.vertex_levels(mesh, e));
             }
         }
     }

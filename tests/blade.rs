@@ -2417,16 +2417,9 @@ fn a_projection_onto_unchanged_functions_keeps_the_moving_state() {
             let before = nm.energies();
             let (mapped, report) = map_state_reported(&m, &m, &nm.state);
             assert!(report.is_some(), "tip DOFs are fitted");
-            let differs = |a: &[f64], b: &[f64]| {
-                let top = b.iter().fold(0.0f64, |t, x| t.max(x.abs()));
-                a.iter()
-                    .zip(b)
-                    .fold(0.0f64, |t, (x, y)| t.max((x - y).abs()))
-                    / top
-            };
             let (v_diff, d_diff) = (
-                differs(&mapped.v, &nm.state.v),
-                differs(&mapped.d, &nm.state.d),
+                vector_difference(&nm.state.v, &mapped.v),
+                vector_difference(&nm.state.d, &mapped.d),
             );
             nm.state.d = mapped.d;
             nm.state.v = mapped.v;
@@ -2489,18 +2482,10 @@ rayleigh = {{ mass = 2.0, stiffness = 0.0 }}
         run(&format!("{blade}{patch}")),
     );
     assert!(a.sweep.events.len() >= 5, "{} events", a.sweep.events.len());
-    let top = a.state.d.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    let differ = largest_difference_of(&a.state.d, &b.state.d) / top;
+    let differ = vector_difference(&a.state.d, &b.state.d);
     println!(
         "{} events; the two orders' displacements differ by {differ:.1e} of the largest",
         a.sweep.events.len()
     );
     assert!(differ <= 1e-12, "{differ:e}");
-}
-
-fn largest_difference_of(a: &[f64], b: &[f64]) -> f64 {
-    assert_eq!(a.len(), b.len());
-    a.iter()
-        .zip(b)
-        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
 }
