@@ -22,13 +22,16 @@
 //!
 //! - Tip front (the default): `tip_event` (set-up, model update with the
 //!   projection's integrals of the tip elements as `run_dynamic` takes them,
-//!   state mapped and projected, the step after it with its numeric
-//!   factorisation, on the carried factor's symbolic one where the pattern
-//!   is unchanged, as `run_dynamic` does, else a new one) and its costliest phases as separate calls, `tip_update`
-//!   and `tip_map_state` (the projection evaluating every element itself;
-//!   linear only: the same for both formulations), `tip_update_fitted` and
-//!   `tip_map_state_fitted` (the two as the sweep runs them), beside `tip_step_sweep`
-//!   (a step on the tip-cut beam), and `tip_event_2threads` (the event on two
+//!   state mapped and projected, the step after it: on the carried
+//!   factor's symbolic analysis where the pattern is unchanged, else a new
+//!   one; linear: with its numeric factorisation; corotational: iterating
+//!   on the carried lagged factor where every equation kept its number,
+//!   refactorised where its rate asks, as `run_dynamic` does) and its
+//!   costliest phases as separate calls, `tip_update` and `tip_map_state`
+//!   (the projection evaluating every element itself; linear only: the same
+//!   for both formulations), `tip_update_fitted` and `tip_map_state_fitted`
+//!   (the two as the sweep runs them), beside `tip_step_sweep` (a step on
+//!   the tip-cut beam), and `tip_event_2threads` (the event on two
 //!   threads). `examples/tip_event.rs` splits it further.
 //!
 //! Short runs: `cargo bench --bench blade -- --warm-up-time 1 --measurement-time 3`.
@@ -72,7 +75,9 @@ fn settled(model: &Model, opts: DynamicOptions) -> Newmark<'_> {
 /// The step after an event on `model` from the mapped `state` (integrator,
 /// numeric factorisation, the step), on the factorisation `chol`.
 fn first_step(model: &Model, chol: Cholesky, state: State, opts: DynamicOptions) {
-    first_step_on(model, chol, state, opts, Parallelism::SEQUENTIAL);
+    let mut nb = Newmark::new(model, chol, opts).unwrap();
+    nb.state = state;
+    black_box(nb.step().unwrap());
 }
 
 /// The carried factor `old` where `model`'s pattern is the one it was
@@ -85,22 +90,6 @@ fn symbolic_for(old: Cholesky, model: &Model) -> Cholesky {
     } else {
         Cholesky::new(&model.pattern).unwrap()
     }
-}
-
-/// [`first_step`] with the element loops on `parallelism`'s threads.
-fn first_step_on(
-    model: &Model,
-    chol: Cholesky,
-    state: State,
-    opts: DynamicOptions,
-    parallelism: Parallelism,
-) {
-    let mut nb = Newmark::new(model, chol, opts).unwrap();
-    if parallelism.n_threads() > 1 {
-        nb.set_parallelism(parallelism);
-    }
-    nb.state = state;
-    black_box(nb.step().unwrap());
 }
 
 /// The linear system after the event solved two ways, each from the set-up
@@ -355,25 +344,46 @@ fn benches(c: &mut Criterion) {
             );
             // The factor the sweep carries into the event (made outside the
             // timing): its symbolic factorisation serves the new model where
-            // the pattern did not change, as in `run_dynamic`.
-            let carried = || Cholesky::new(&model_a.pattern).unwrap();
+            // the pattern did not change, and a corotational scene's steps
+            // after the event iterate on its lagged numeric factor where
+            // every equation kept its number, as in `run_dynamic`.
+            let carried = || {
+                let mut nm =
+                    Newmark::new(&model_a, Cholesky::new(&model_a.pattern).unwrap(), opts).unwrap();
+                nm.state = state_a.clone();
+                nm.step().unwrap();
+                nm.into_factor()
+            };
+            let event = |old: LinearFactor, parallelism: Parallelism| {
+                let s = cuts.setup_at(&mesh, t_b).unwrap();
+                let (m, _, update, fits) = model_a
+                    .update_cut_fitted_with(s, &state_a, parallelism)
+                    .unwrap();
+                let (mapped, _) = map_state_fitted_with(&model_a, &m, &state_a, &fits, parallelism);
+                let same_equations = m.n_free == model_a.n_free
+                    && update
+                        .equation
+                        .iter()
+                        .enumerate()
+                        .all(|(i, &e)| e as usize == i);
+                let lagged = old.lagged.filter(|_| same_equations);
+                let factor = LinearFactor {
+                    chol: symbolic_for(old.chol, &m),
+                    values: None,
+                    border: None,
+                    lagged,
+                };
+                let mut nb = Newmark::on_factor(&m, factor, opts).unwrap();
+                if parallelism.n_threads() > 1 {
+                    nb.set_parallelism(parallelism);
+                }
+                nb.state = mapped;
+                black_box(nb.step().unwrap());
+            };
             group.bench_function(BenchmarkId::new("tip_event", &name), |b| {
                 b.iter_batched(
                     carried,
-                    |old| {
-                        let s = cuts.setup_at(&mesh, t_b).unwrap();
-                        let (m, _, _, fits) = model_a
-                            .update_cut_fitted_with(s, &state_a, Parallelism::SEQUENTIAL)
-                            .unwrap();
-                        let (mapped, _) = map_state_fitted_with(
-                            &model_a,
-                            &m,
-                            &state_a,
-                            &fits,
-                            Parallelism::SEQUENTIAL,
-                        );
-                        first_step(&m, symbolic_for(old, &m), mapped, opts);
-                    },
+                    |old| event(old, Parallelism::SEQUENTIAL),
                     BatchSize::LargeInput,
                 )
             });
@@ -382,17 +392,7 @@ fn benches(c: &mut Criterion) {
             // loops side by side).
             let two = Parallelism::threads(2);
             group.bench_function(BenchmarkId::new("tip_event_2threads", &name), |b| {
-                b.iter_batched(
-                    carried,
-                    |old| {
-                        let s = cuts.setup_at(&mesh, t_b).unwrap();
-                        let (m, _, _, fits) =
-                            model_a.update_cut_fitted_with(s, &state_a, two).unwrap();
-                        let (mapped, _) = map_state_fitted_with(&model_a, &m, &state_a, &fits, two);
-                        first_step_on(&m, symbolic_for(old, &m), mapped, opts, two);
-                    },
-                    BatchSize::LargeInput,
-                )
+                b.iter_batched(carried, |old| event(old, two), BatchSize::LargeInput)
             });
             // The phases, once (they do not depend on the formulation).
             if formulation == Formulation::Linear {

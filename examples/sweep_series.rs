@@ -143,7 +143,10 @@ fn main() {
         eprintln!(
             "  event after step {} (t = {:.2}): DOFs {} → {}, {} elements integrated again, {:.3e} s (model {:.3e}, symbolic {:.3e}), then {}",
             e.step, e.time, e.dofs_before, e.dofs_after, e.changed_elements, e.seconds, e.model_seconds, e.symbolic_seconds,
-            e.border.map_or("refactorised".to_string(), |k| format!("bordered (k = {k})"))
+            e.border.map_or(
+                if e.lagged { "on the lagged factor" } else { "refactorised" }.to_string(),
+                |k| format!("bordered (k = {k})"),
+            )
         );
     }
     if let Some(dir) = out {

@@ -1719,8 +1719,12 @@ pub struct Event {
     /// redone, unless the steps solved bordered on the old factor).
     pub pattern_changed: bool,
     /// The border k of the [`BorderedSolve`] the steps after the event
-    /// solved with on an earlier factor; `None`: refactorised.
+    /// solved with on an earlier factor; `None`: refactorised, or lagged.
     pub border: Option<usize>,
+    /// Corotational on a lagged factor: the steps after the event began on
+    /// the factor of the steps before it (the same equations, the pattern
+    /// unchanged), refactorised only when their rate asked for it.
+    pub lagged: bool,
     /// Elements integrated again ([`Model::update_cut`]).
     pub changed_elements: usize,
     /// Seconds of the model update (with the projection's integrals of the
@@ -1828,9 +1832,10 @@ impl std::fmt::Display for Sweep {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let patterns = self.events.iter().filter(|e| e.pattern_changed).count();
         let (bordered, border) = self.bordered_events();
+        let lagged = self.events.iter().filter(|e| e.lagged).count();
         write!(
             f,
-            "sweep {:.4} → {:.4} s: {} cut events ({} changed the pattern, {} set-ups checked; {} solved bordered on an earlier factor (border up to {}, {} refactorised later), {} refactorised), DOFs {} → {}, {} symbolic / {} numeric factorisations, {:.3} s in events, {:.3} s checking, {:.3} s in steps, largest energy change at an event {:.1e}{}",
+            "sweep {:.4} → {:.4} s: {} cut events ({} changed the pattern, {} set-ups checked; {} solved bordered on an earlier factor (border up to {}, {} refactorised later), {} went on with the lagged factor, {} refactorised), DOFs {} → {}, {} symbolic / {} numeric factorisations, {:.3} s in events, {:.3} s checking, {:.3} s in steps, largest energy change at an event {:.1e}{}",
             self.start,
             self.end,
             self.events.len(),
@@ -1839,7 +1844,8 @@ impl std::fmt::Display for Sweep {
             bordered,
             border,
             self.refreshed,
-            self.events.len() - bordered,
+            lagged,
+            self.events.len() - bordered - lagged,
             self.dofs_first,
             self.dofs_last,
             self.symbolic,
@@ -1903,6 +1909,7 @@ pub fn run_dynamic_with(
         chol: Cholesky::new(&model.pattern)?,
         values: None,
         border: None,
+        lagged: None,
     };
     sweep.symbolic = 1;
     let linear = model.formulation == crate::model::Formulation::Linear;
@@ -1994,6 +2001,10 @@ pub fn run_dynamic_with(
         // are numbered afresh).
         // The projection's integrals of the elements the update integrated.
         let mut fits = TipFits::new();
+        // Whether every old free equation keeps its number and none is new
+        // (a front moving inside the elements it holds): a corotational
+        // scene's lagged factor is then one of the same equations.
+        let mut same_equations = false;
         let (new_model, changed_elements, renumbered) = if model.body_force {
             let m = build(setup)?;
             let n = m.mesh.n_elements();
@@ -2004,6 +2015,12 @@ pub fn run_dynamic_with(
             // The stiffness moved over and mended where the elements changed.
             forces = old_forces.map(|f| f.updated(&model, &m, &update));
             fits = tip_fits;
+            same_equations = m.n_free == model.n_free
+                && update
+                    .equation
+                    .iter()
+                    .enumerate()
+                    .all(|(i, &e)| e as usize == i);
             (m, stats.changed_elements, stats.dropped_equations > 0)
         };
         let model_seconds = t_model.elapsed().as_secs_f64();
@@ -2031,6 +2048,7 @@ pub fn run_dynamic_with(
                 chol,
                 values: None,
                 border: None,
+                lagged: old.lagged.filter(|_| same && same_equations),
             }
         };
         let symbolic_seconds = t_symbolic.elapsed().as_secs_f64();
@@ -2045,6 +2063,7 @@ pub fn run_dynamic_with(
             after: Energies::default(),
             pattern_changed,
             border: None,
+            lagged: factor.lagged.is_some(),
             changed_elements,
             model_seconds,
             symbolic_seconds,

@@ -148,7 +148,7 @@ pub fn border_limit(max_border: usize, n: usize, factor_nnz: usize) -> usize {
 /// Tet4 and 1k Tet10 beams.
 pub const DEFAULT_EVENT_SOLVE: EventSolve = EventSolve::Bordered { max_border: 256 };
 
-/// A linear integrator's factorisation handed across a cut event
+/// An integrator's factorisation handed across a cut event
 /// ([`Newmark::into_factor`], [`Newmark::on_factor`]).
 pub struct LinearFactor {
     pub chol: Cholesky,
@@ -159,6 +159,10 @@ pub struct LinearFactor {
     /// The border the integrator solved with on `chol`, if any: the next
     /// one on the same factor reuses its columns ([`BorderedSolve::grown`]).
     pub border: Option<BorderedSolve>,
+    /// Corotational on a lagged factor ([`LinearSolver::Lagged`]): `chol`
+    /// holds a factorisation of an earlier step's K_eff, begun this many
+    /// steps ago; `None` where it holds none.
+    pub lagged: Option<usize>,
 }
 
 /// The factor a linear step solves on after cut events, and the matrix it holds.
@@ -966,8 +970,12 @@ impl<'m> Newmark<'m> {
     /// pattern). A linear scene with [`EventSolve::Bordered`] keeps it and
     /// its first step solves the grown K_eff on it ([`BorderedSolve`]) where
     /// it can; otherwise the symbolic factorisation is redone here where the
-    /// pattern differs. The caller vouches that the old equations kept their
-    /// numbers when it passes `values`.
+    /// pattern differs. A corotational scene on a lagged factor
+    /// ([`LinearSolver::Lagged`]) whose `factor` holds one (`lagged`) on the
+    /// model's pattern iterates on it, as on any lagged factor: modified
+    /// Newton, refactorised where its rate or count asks for it. The caller
+    /// vouches that the old equations kept their numbers when it passes
+    /// `values` or `lagged`.
     pub fn on_factor(
         model: &'m Model,
         factor: LinearFactor,
@@ -975,8 +983,9 @@ impl<'m> Newmark<'m> {
     ) -> Result<Newmark<'m>, DynamicError> {
         let mut nm = Newmark::new(model, factor.chol, opts)?;
         let bordered = matches!(opts.event_solve, EventSolve::Bordered { .. });
+        let linear = model.formulation == Formulation::Linear;
         match factor.values {
-            Some(values) if bordered && model.formulation == Formulation::Linear => {
+            Some(values) if bordered && linear => {
                 nm.base = Some(Base {
                     pattern: nm.chol.pattern().clone(),
                     values,
@@ -987,6 +996,19 @@ impl<'m> Newmark<'m> {
                 });
             }
             _ => nm.match_pattern()?,
+        }
+        if let (Some(age), LinearSolver::Lagged { .. }, false) =
+            (factor.lagged, opts.linear_solver, linear)
+        {
+            // match_pattern kept the factor only where the pattern is the model's.
+            let p = nm.chol.pattern();
+            if nm.symbolic == 0
+                && p.col_ptr == model.pattern.col_ptr
+                && p.row_idx == model.pattern.row_idx
+            {
+                nm.factored = true;
+                nm.steps_since_factor = age;
+            }
         }
         Ok(nm)
     }
@@ -1082,10 +1104,15 @@ impl<'m> Newmark<'m> {
             None if linear && self.factored => (Some(self.keff), None),
             None => (None, None),
         };
+        let lagged = (!linear
+            && self.factored
+            && matches!(self.opts.linear_solver, LinearSolver::Lagged { .. }))
+        .then_some(self.steps_since_factor);
         LinearFactor {
             chol: self.chol,
             values,
             border,
+            lagged,
         }
     }
 

@@ -224,11 +224,23 @@ impl Plan {
                     true,
                     "linear: K_eff refactorised at the first step after each event",
                 ),
-                (true, _) => add(
-                    "cut events: bordered solve on the last factor",
-                    false,
-                    "corotational: the step after an event factorises the new model's tangent",
-                ),
+                (true, _) => {
+                    add(
+                        "cut events: bordered solve on the last factor",
+                        false,
+                        "corotational: the step after an event factorises the new model's tangent, or iterates on the lagged one",
+                    );
+                    let lagged = matches!(o.linear_solver, LinearSolver::Lagged { .. });
+                    add(
+                        "cut events: the lagged factor carried over",
+                        lagged,
+                        if lagged {
+                            "where an event keeps every equation (a front moving inside the elements it holds, the pattern unchanged) the steps after it iterate on the factor of the steps before, refactorised when their rate asks; elsewhere the step after it factorises the new model's tangent"
+                        } else {
+                            "the step after an event factorises the new model's tangent (lagged factor only)"
+                        },
+                    );
+                }
             }
         }
         if dynamic.is_some() {

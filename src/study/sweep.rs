@@ -241,6 +241,7 @@ mod tests {
             after: Energies::default(),
             pattern_changed: true,
             border: None,
+            lagged: false,
             changed_elements: 0,
             model_seconds: 0.0,
             symbolic_seconds: 0.0,
