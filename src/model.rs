@@ -2583,12 +2583,18 @@ impl Model {
     /// nodes up to 8e-2 off ½ g t² for a part of a few coarse elements,
     /// 24 % on a soft bar), a self-equilibrated load of its own weight. Parts held by
     /// a boundary keep the consistent load, so that a damped dynamic scene
-    /// settles on the static solution. `None` where nothing changes (Tet4,
-    /// no part floats free, no gravity, a body force beyond gravity, or no
-    /// lumped mass built). Tip functions in a floating part keep their
-    /// consistent load.
+    /// settles on the static solution. Tip functions in a floating part
+    /// (another cut's front inside a fragment) take no gravity load: their
+    /// lumped mass is diagonal, with no coupling to the standard DOFs, so the
+    /// lumped mass times the part's translation g is zero on them, and their
+    /// consistent load ρ g ∫ N_i (F_k − F_k(x_i)) pushed the fragment's nodes
+    /// off ½ g t² (1e-5 of it, Tet4). `None` where nothing changes (Tet4
+    /// without tip functions, no part floats free, no gravity, a body force
+    /// beyond gravity, or no lumped mass built).
     pub fn lumped_load(&self) -> Option<Vec<f64>> {
-        if self.lump_residual.is_empty() || self.body_force {
+        let tips = self.cut.as_ref().is_some_and(|c| c.n_tip > 0);
+        if (self.lump_residual.is_empty() && !tips) || self.body_force || self.lumped_mass.is_none()
+        {
             return None;
         }
         let g = self.gravity?;
@@ -2604,7 +2610,19 @@ impl Model {
         let n_nodes = self.mesh.n_nodes();
         let mut load = self.load.clone();
         for (e, side) in floating {
-            let residual = &self.lump_residual[e][usize::from(side < 0)];
+            if let Some(c) = self.cut.as_ref().filter(|_| tips) {
+                let first = n_nodes + c.n_enriched;
+                for &node in self.mesh.element(e) {
+                    if let Some(t) = c.tip[node] {
+                        let dofs = 3 * (first + N_BRANCH * t)..3 * (first + N_BRANCH * (t + 1));
+                        load[dofs].fill(0.0);
+                    }
+                }
+            }
+            let Some(residual) = self.lump_residual.get(e).map(|r| &r[usize::from(side < 0)])
+            else {
+                continue;
+            };
             for (k, &node) in self.mesh.element(e).iter().enumerate() {
                 let r = residual[k];
                 for c in 0..3 {

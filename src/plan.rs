@@ -115,7 +115,19 @@ impl Plan {
                 "mass (lumped, eq. 81-82)",
                 true,
                 &format!(
-                    "dynamic scene; Tet10: HRZ (cut elements: per cell, balanced to the element's node masses); a part that floats free takes its lumped mass times g as its gravity load and falls with g, held parts keep the consistent load ({})",
+                    "dynamic scene; Tet10: HRZ (cut elements: per cell, balanced to the element's node masses); a part that floats free takes its lumped mass times g as its gravity load (none on tip functions: their lumped mass is diagonal) and falls with g, held parts keep the consistent load ({})",
+                    match (progressive, model.floating_parts()) {
+                        (true, _) => "parts a blade frees: from the event that frees them".to_string(),
+                        (false, 0) => "no part floats free here".to_string(),
+                        (false, n) => format!("{n} part(s) float free here"),
+                    }
+                ),
+            ),
+            Some(MassKind::Lumped) if model.cut.as_ref().is_some_and(|c| c.n_tip > 0) => add(
+                "mass (lumped, eq. 81-82)",
+                true,
+                &format!(
+                    "dynamic scene; tip functions: diagonal lumped mass, no coupling; in a part that floats free they take no gravity load, so that it falls with g ({})",
                     match (progressive, model.floating_parts()) {
                         (true, _) => "parts a blade frees: from the event that frees them".to_string(),
                         (false, 0) => "no part floats free here".to_string(),
