@@ -2166,27 +2166,21 @@ fn a_corotational_tet10_sweep_on_a_node_layer_runs() {
 /// its section at height `z` during [0, 0.1] s (10 steps of 0.01 s, mass
 /// damping 5/s), run through the CLI's solve.
 fn layer_sweep(z: f64, formulation: &str) -> xfem_cut::run::RunResult {
-    layer_sweep_with(z, formulation, "tet10", 3.0e5, [2, 4, 10], 0.08, 10)
+    run_scene_text(&layer_scene(
+        z,
+        formulation,
+        "tet10",
+        3.0e5,
+        [2, 4, 10],
+        0.08,
+        10,
+    ))
 }
 
-/// [`layer_sweep`] with the element, the material's Young's modulus, the
-/// mesh divisions (x, y, z), the blade's travel across the section (from
-/// 1 cm before it; 0.07 and more take it through, the section being 6 cm
-/// wide) and the steps.
-fn layer_sweep_with(
-    z: f64,
-    formulation: &str,
-    element: &str,
-    young: f64,
-    divisions: [usize; 3],
-    travel: f64,
-    steps: usize,
-) -> xfem_cut::run::RunResult {
-    let text = layer_scene(z, formulation, element, young, divisions, travel, steps);
-    run_scene_text(&text)
-}
-
-/// The case file of [`layer_sweep_with`].
+/// The case file of [`layer_sweep`] with the element, the material's
+/// Young's modulus, the mesh divisions (x, y, z), the blade's travel across
+/// the section (from 1 cm before it; 0.07 and more take it through, the
+/// section being 6 cm wide) and the steps; run by [`run_scene_text`].
 fn layer_scene(
     z: f64,
     formulation: &str,
@@ -2324,7 +2318,7 @@ fn the_energy_a_moving_tip_front_loses_at_its_events_falls_with_h() {
         .into_iter()
         .enumerate()
         .map(|(level, divisions)| {
-            let run = layer_sweep_with(
+            let run = run_scene_text(&layer_scene(
                 0.0400001,
                 "corotational",
                 "tet4",
@@ -2332,7 +2326,7 @@ fn the_energy_a_moving_tip_front_loses_at_its_events_falls_with_h() {
                 divisions,
                 0.0873,
                 10,
-            );
+            ));
             let sweep = run.sweep.unwrap();
             let event = sweep
                 .events
