@@ -360,13 +360,7 @@ fn benches(c: &mut Criterion) {
                     .update_cut_fitted_with(s, &state_a, parallelism)
                     .unwrap();
                 let (mapped, _) = map_state_fitted_with(&model_a, &m, &state_a, &fits, parallelism);
-                let same_equations = m.n_free == model_a.n_free
-                    && update
-                        .equation
-                        .iter()
-                        .enumerate()
-                        .all(|(i, &e)| e as usize == i);
-                let lagged = old.lagged.filter(|_| same_equations);
+                let lagged = old.lagged.filter(|_| update.keeps_every_equation(m.n_free));
                 let factor = LinearFactor {
                     chol: symbolic_for(old.chol, &m),
                     values: None,

@@ -2015,12 +2015,7 @@ pub fn run_dynamic_with(
             // The stiffness moved over and mended where the elements changed.
             forces = old_forces.map(|f| f.updated(&model, &m, &update));
             fits = tip_fits;
-            same_equations = m.n_free == model.n_free
-                && update
-                    .equation
-                    .iter()
-                    .enumerate()
-                    .all(|(i, &e)| e as usize == i);
+            same_equations = update.keeps_every_equation(m.n_free);
             (m, stats.changed_elements, stats.dropped_equations > 0)
         };
         let model_seconds = t_model.elapsed().as_secs_f64();

@@ -1001,11 +1001,7 @@ impl<'m> Newmark<'m> {
             (factor.lagged, opts.linear_solver, linear)
         {
             // match_pattern kept the factor only where the pattern is the model's.
-            let p = nm.chol.pattern();
-            if nm.symbolic == 0
-                && p.col_ptr == model.pattern.col_ptr
-                && p.row_idx == model.pattern.row_idx
-            {
+            if nm.symbolic == 0 {
                 nm.factored = true;
                 nm.steps_since_factor = age;
             }

@@ -2798,6 +2798,20 @@ pub struct CutUpdate {
     pub equation: Vec<u32>,
 }
 
+impl CutUpdate {
+    /// Whether every old free equation keeps its number and none is new
+    /// (`n_free` the new model's): a front moving inside the elements that
+    /// hold its branch functions.
+    pub fn keeps_every_equation(&self, n_free: usize) -> bool {
+        self.equation.len() == n_free
+            && self
+                .equation
+                .iter()
+                .enumerate()
+                .all(|(i, &e)| e as usize == i)
+    }
+}
+
 /// What [`Model::update_cut`] kept and recomputed.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct UpdateStats {

@@ -110,17 +110,19 @@ impl Plan {
         };
         add("element data (gradients, integration groups)", true, data);
         add("sparsity pattern + symbolic factorisation", true, pattern);
+        // Which parts take their lumped mass times g (`Model::lumped_load`).
+        let floating = || match (progressive, model.floating_parts()) {
+            (true, _) => "parts a blade frees: from the event that frees them".to_string(),
+            (false, 0) => "no part floats free here".to_string(),
+            (false, n) => format!("{n} part(s) float free here"),
+        };
         match dynamic.map(|o| o.mass) {
             Some(MassKind::Lumped) if model.mesh.kind == crate::mesh::ElementKind::Tet10 => add(
                 "mass (lumped, eq. 81-82)",
                 true,
                 &format!(
                     "dynamic scene; Tet10: HRZ (cut elements: per cell, balanced to the element's node masses); a part that floats free takes its lumped mass times g as its gravity load (none on tip functions: their lumped mass is diagonal) and falls with g, held parts keep the consistent load ({})",
-                    match (progressive, model.floating_parts()) {
-                        (true, _) => "parts a blade frees: from the event that frees them".to_string(),
-                        (false, 0) => "no part floats free here".to_string(),
-                        (false, n) => format!("{n} part(s) float free here"),
-                    }
+                    floating()
                 ),
             ),
             Some(MassKind::Lumped) if model.cut.as_ref().is_some_and(|c| c.n_tip > 0) => add(
@@ -128,11 +130,7 @@ impl Plan {
                 true,
                 &format!(
                     "dynamic scene; tip functions: diagonal lumped mass, no coupling; in a part that floats free they take no gravity load, so that it falls with g ({})",
-                    match (progressive, model.floating_parts()) {
-                        (true, _) => "parts a blade frees: from the event that frees them".to_string(),
-                        (false, 0) => "no part floats free here".to_string(),
-                        (false, n) => format!("{n} part(s) float free here"),
-                    }
+                    floating()
                 ),
             ),
             Some(MassKind::Lumped) => add("mass (lumped, eq. 81-82)", true, "dynamic scene"),

@@ -1677,33 +1677,18 @@ fn a_tip_front_beside_another_cut_evaluates_its_branch_functions_with_its_own_le
             "the front's elements reach the other cut's nodes"
         );
         assert_eq!(both.n_tip, alone.n_tip);
-        let mb = model(
-            &mesh,
-            Some(both.clone()),
-            Formulation::Linear,
-            g,
-            None,
-            false,
-        )
-        .unwrap();
-        let ma = model(
-            &mesh,
-            Some(alone.clone()),
-            Formulation::Linear,
-            g,
-            None,
-            false,
-        )
-        .unwrap();
-        let mf = model(
-            &mesh,
-            Some(first.clone()),
-            Formulation::Linear,
-            g,
-            None,
-            false,
-        )
-        .unwrap();
+        let build = |cut: &CutSetup| {
+            model(
+                &mesh,
+                Some(cut.clone()),
+                Formulation::Linear,
+                g,
+                None,
+                false,
+            )
+            .unwrap()
+        };
+        let (mb, ma, mf) = (build(&both), build(&alone), build(&first));
         // A field on the front's cut alone: made-up standard and tip values;
         // the same in the model of both cuts, with made-up values of the
         // other cut's Heaviside DOFs too.
