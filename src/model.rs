@@ -277,11 +277,13 @@ impl Model {
         let n_shape = shape_count(&mesh, cut.as_ref())?;
         let mut shape_ref: Vec<Vector3<f64>> = mesh.nodes.iter().map(|p| p.coords).collect();
         shape_ref.resize(n_shape, Vector3::zeros());
+        let joined = small_side_rotation(&mesh, cut.as_ref(), formulation, integration);
         let integrator = Integrator {
             mesh: &mesh,
             lame: Lame::from(material),
             rho: material.density,
             integration,
+            joined: joined.as_deref(),
             gravity,
             body_force,
             need_mass,
@@ -983,8 +985,10 @@ const NEAR_FRONT_DEPTH: usize = 1;
 const NEAR_FRONT_GAP: f64 = 0.5;
 
 /// Sides of a tip element under this fraction of its volume share the
-/// largest side's group (and rotation): see [`merge_small_sides`].
-const SMALL_SIDE: f64 = 1e-3;
+/// largest side's group (and rotation): see [`merge_small_sides`]; so do
+/// the small sides of corotational Tet10 cut elements whose sides lie in one
+/// part ([`Integrator::small_side`]).
+pub const SMALL_SIDE: f64 = 1e-3;
 
 /// Moves the points of each side of a tip element smaller than
 /// [`SMALL_SIDE`] of the element's volume into its largest side (columns,
@@ -1494,6 +1498,9 @@ struct Integrator<'a> {
     lame: Lame,
     rho: f64,
     integration: Integration,
+    /// Per element, where a cut element's small side may take its other
+    /// side's rotation ([`small_side_rotation`]): `None` where none may.
+    joined: Option<&'a [bool]>,
     gravity: Option<Vector3<f64>>,
     body_force: Option<&'a BodyForce>,
     need_mass: bool,
@@ -1790,6 +1797,42 @@ impl Integrator<'_> {
         a
     }
 
+    /// The side of a cut element (with a rotation per point) under
+    /// [`SMALL_SIDE`] of its volume, where [`Integrator::joined`] lets it
+    /// rotate with the other side, and the other side's centroid
+    /// (barycentric in the element). A corner the cut leaves a few 1e-8 of
+    /// a Tet10 (just beyond the snap) holds DOFs that little else
+    /// constrains: with a rotation per point, from the element's quadratic
+    /// extrapolated into the corner, its points inverted under a shock and
+    /// Newton stalled (a blade sweeping a partial cut, the top face moved at
+    /// once). With the other side's rotation its energy is quadratic in
+    /// them; the cost is a stiffness of that fraction of the element
+    /// against the two sides' relative rotation (as [`merge_small_sides`]
+    /// in tip elements). Only within one part: across a through cut it
+    /// would be a force between two parts.
+    fn small_side(&self, cells: &ElementCells) -> Option<(i8, [f64; 4])> {
+        if !self.joined.is_some_and(|j| j[cells.element]) || cells.heaviside.is_empty() {
+            return None;
+        }
+        let mut volume = [0.0; 2];
+        let mut centre = [Vector3::zeros(); 2];
+        for cell in cells.cells.iter().filter(|c| c.side != 0) {
+            let s = usize::from(cell.side > 0);
+            let v = cell.volume.abs();
+            volume[s] += v;
+            centre[s] += cell.vertices.iter().map(|p| p.coords).sum::<Vector3<f64>>() * (0.25 * v);
+        }
+        let total = volume[0] + volume[1];
+        let s = if volume[0] < volume[1] { 0 } else { 1 };
+        if volume[s] <= 0.0 || volume[s] >= SMALL_SIDE * total {
+            return None;
+        }
+        let other = 1 - s;
+        let x = Point3::from(centre[other] / volume[other]);
+        let bary = crate::mesh::barycentric(&cells.verts, &x)?;
+        Some((if s == 1 { 1 } else { -1 }, bary))
+    }
+
     /// Elements without tip functions: per cell, the stiffness points
     /// (grouped per side for Tet4: the strain is constant there), the load
     /// points and the mass points.
@@ -1813,12 +1856,25 @@ impl Integrator<'_> {
         let mut ngrads = [Vector3::zeros(); 10];
         let mut shape_val = vec![0.0; m];
         let mut side_group: [Option<usize>; 3] = [None; 3];
+        // A small side rotating with the other ([`Integrator::small_side`]):
+        // its points' gradients (3m a column) and weights.
+        let small = self.small_side(cells);
+        let (mut small_columns, mut small_weights) = (Vec::new(), Vec::new());
         // Per cell: ∫N_k and ∫N_k² for the lumped mass.
         let (mut lump_n, mut lump_n2) = (Vec::new(), Vec::new());
         for cell in &cells.cells {
             for q in stiffness_rule {
                 let (bary, w) = map_point(&cells.verts, &cell.vertices, q, cell.volume);
                 shape_gradients(kind, &bary, &cells.dl, &mut ngrads);
+                if small.is_some_and(|(side, _)| side == cell.side) {
+                    small_columns.extend(ngrads[..nn].iter().flat_map(|g| [g.x, g.y, g.z]));
+                    small_columns.extend(cells.heaviside.iter().flat_map(|&k| {
+                        let g = ngrads[k] * cells.psi(cell, k);
+                        [g.x, g.y, g.z]
+                    }));
+                    small_weights.push(w);
+                    continue;
+                }
                 let g = match (grouped, side_group[(cell.side + 1) as usize]) {
                     (true, Some(g)) => g,
                     _ => {
@@ -1893,6 +1949,20 @@ impl Integrator<'_> {
                 }
                 lump_n.push(int_n);
                 lump_n2.push(int_n2);
+            }
+        }
+        if let Some((side, centroid)) = small {
+            // Its stiffness summed, its rotation the other side's: the
+            // averaged gradients are the other side's field's (linear in
+            // x for Tet10, so their mean is their value at its centroid).
+            let m = block.shape_ids.len();
+            self.dense_group(m, &small_columns, &small_weights, block);
+            shape_gradients(kind, &centroid, &cells.dl, &mut ngrads);
+            let start = block.grads.len() - m;
+            let averaged = &mut block.grads[start..];
+            averaged[..nn].copy_from_slice(&ngrads[..nn]);
+            for (j, &k) in cells.heaviside.iter().enumerate() {
+                averaged[nn + j] = ngrads[k] * psi(-side, cells.node_side[k]);
             }
         }
         if self.need_mass {
@@ -2654,28 +2724,7 @@ impl Model {
     /// the nodes (and components) where each part is held ([`Model::free_parts`]).
     fn parts(&self) -> (Vec<(usize, i8)>, Vec<Part>) {
         let mesh = &self.mesh;
-        let mut regions: Vec<(usize, i8)> = Vec::new();
-        for e in 0..mesh.n_elements() {
-            match self.cut.as_ref().map(|c| &c.elements[e]) {
-                Some(ElementCut::Cut { .. }) => {
-                    regions.push((e, 1));
-                    regions.push((e, -1));
-                }
-                Some(ElementCut::Touched { side }) => regions.push((e, *side)),
-                _ => regions.push((e, 0)),
-            }
-        }
-        let mut parent: Vec<usize> = (0..regions.len()).collect();
-        fn find(p: &mut [usize], mut i: usize) -> usize {
-            while p[i] != i {
-                p[i] = p[p[i]];
-                i = p[i];
-            }
-            i
-        }
-        // Key (node, ψ in the region) → first region seen with it.
-        let mut first: std::collections::HashMap<(usize, i8), usize> =
-            std::collections::HashMap::new();
+        let (regions, mut parent) = regions_joined(mesh, self.cut.as_ref());
         // Per region: the nodes where it is held, with the components.
         let mut held: Vec<Vec<(usize, [bool; 3])>> = vec![Vec::new(); regions.len()];
         let n_nodes = mesh.n_nodes();
@@ -2694,22 +2743,13 @@ impl Model {
                 if mask.iter().any(|&m| m) {
                     held[r].push((node, mask));
                 }
-                match first.entry((node, p)) {
-                    std::collections::hash_map::Entry::Occupied(o) => {
-                        let (a, b) = (find(&mut parent, r), find(&mut parent, *o.get()));
-                        parent[a] = b;
-                    }
-                    std::collections::hash_map::Entry::Vacant(v) => {
-                        v.insert(r);
-                    }
-                }
             }
         }
         // Parts in the order of their first region.
         let mut part_of_root = vec![usize::MAX; regions.len()];
         let mut parts: Vec<Part> = Vec::new();
         for (r, nodes) in held.into_iter().enumerate() {
-            let root = find(&mut parent, r);
+            let root = find_root(&mut parent, r);
             if part_of_root[root] == usize::MAX {
                 part_of_root[root] = parts.len();
                 parts.push(Part {
@@ -2779,6 +2819,89 @@ impl Model {
 
 // ---------------------------------------------------------------------------
 // A cut event: the model of a grown cut from the model of the old one.
+
+/// The body's regions ((element, side) pairs: both sides of a cut
+/// element, the one side of an element the cut touches, side 0 elsewhere)
+/// and a union-find forest over them ([`find_root`]): regions joined where
+/// they share a node and see the same DOFs there (ψ of the node in the
+/// region), so that a root is a part of the body.
+fn regions_joined(mesh: &TetMesh, cut: Option<&CutSetup>) -> (Vec<(usize, i8)>, Vec<usize>) {
+    let mut regions: Vec<(usize, i8)> = Vec::new();
+    for e in 0..mesh.n_elements() {
+        match cut.map(|c| &c.elements[e]) {
+            Some(ElementCut::Cut { .. }) => {
+                regions.push((e, 1));
+                regions.push((e, -1));
+            }
+            Some(ElementCut::Touched { side }) => regions.push((e, *side)),
+            _ => regions.push((e, 0)),
+        }
+    }
+    let mut parent: Vec<usize> = (0..regions.len()).collect();
+    // Key (node, ψ in the region) → first region seen with it.
+    let mut first: std::collections::HashMap<(usize, i8), usize> = std::collections::HashMap::new();
+    for (r, &(e, side)) in regions.iter().enumerate() {
+        for &node in mesh.element(e) {
+            let p = match cut {
+                Some(c) if side != 0 && c.enriched[node].is_some() => {
+                    psi(side, c.node_side[node]) as i8
+                }
+                _ => 0,
+            };
+            match first.entry((node, p)) {
+                std::collections::hash_map::Entry::Occupied(o) => {
+                    let (a, b) = (find_root(&mut parent, r), find_root(&mut parent, *o.get()));
+                    parent[a] = b;
+                }
+                std::collections::hash_map::Entry::Vacant(v) => {
+                    v.insert(r);
+                }
+            }
+        }
+    }
+    (regions, parent)
+}
+
+/// The root of region `i` in the union-find forest `p` (paths halved).
+fn find_root(p: &mut [usize], mut i: usize) -> usize {
+    while p[i] != i {
+        p[i] = p[p[i]];
+        i = p[i];
+    }
+    i
+}
+
+/// Per element, whether a side of it under [`SMALL_SIDE`] of its volume
+/// takes the rotation of its other side ([`Integrator::standard_block`]):
+/// for corotational Tet10 with a rotation per point, where the element's
+/// two sides lie in one part ([`sides_in_one_part`]); `None` elsewhere
+/// (linear groups do not rotate; a cut Tet4 side is one group already).
+fn small_side_rotation(
+    mesh: &TetMesh,
+    cut: Option<&CutSetup>,
+    formulation: Formulation,
+    integration: Integration,
+) -> Option<Vec<bool>> {
+    let rotates = formulation == Formulation::Corotational
+        && mesh.kind == ElementKind::Tet10
+        && integration == Integration::Grouped;
+    cut.filter(|_| rotates).map(|c| sides_in_one_part(mesh, c))
+}
+
+/// Per element: whether it is cut and its two sides lie in one part of the
+/// body (the cut ends somewhere and the material goes round it), so that
+/// one side may take the other's rotation without joining two parts.
+fn sides_in_one_part(mesh: &TetMesh, cut: &CutSetup) -> Vec<bool> {
+    let (regions, mut parent) = regions_joined(mesh, Some(cut));
+    let mut joined = vec![false; mesh.n_elements()];
+    for r in 1..regions.len() {
+        let ((e, side), (e_prev, side_prev)) = (regions[r], regions[r - 1]);
+        if e == e_prev && side == -1 && side_prev == 1 {
+            joined[e] = find_root(&mut parent, r) == find_root(&mut parent, r - 1);
+        }
+    }
+    joined
+}
 
 /// A part of the body ([`Model::parts`]): its regions (indices into the
 /// region list) and the nodes, with components, where it is held.
@@ -3030,11 +3153,13 @@ impl Model {
         let n_shape = shape_count(mesh, cut.as_ref())?;
         let need_mass = self.lumped_mass.is_some();
         let map = shape_map(n_nodes, self.cut.as_ref(), cut.as_ref(), self.n_shape);
+        let joined = small_side_rotation(mesh, cut.as_ref(), self.formulation, self.integration);
         let integrator = Integrator {
             mesh,
             lame: self.lame,
             rho: self.material.density,
             integration: self.integration,
+            joined: joined.as_deref(),
             gravity: self.gravity,
             body_force: None,
             need_mass,
@@ -3113,10 +3238,19 @@ impl Model {
         }
         // The changed elements' old contributions (loads, masses) and new
         // blocks, integrated side by side; added below in element order.
+        // Elements whose sides join or part (a blade freed a fragment, or
+        // the front went round): a small side's rotation changes with it.
+        let joined_old =
+            small_side_rotation(mesh, self.cut.as_ref(), self.formulation, self.integration);
+        let rejoined = |e: usize| {
+            let at = |j: &Option<Vec<bool>>| j.as_ref().is_some_and(|j| j[e]);
+            at(&joined_old) != at(&joined)
+        };
         let kept: Vec<bool> = (0..mesh.n_elements())
             .map(|e| {
                 same_element_model(mesh, self.cut.as_ref(), cut.as_ref(), e)
                     && !mesh.element(e).iter().any(|&i| flipped[i])
+                    && !rejoined(e)
             })
             .collect();
         let to_integrate: Vec<usize> = (0..mesh.n_elements()).filter(|&e| !kept[e]).collect();

@@ -141,13 +141,21 @@ impl Plan {
             ),
             None => add("mass", false, "static scene: no mass"),
         }
+        let tet10 = model.mesh.kind == crate::mesh::ElementKind::Tet10;
         add(
             "rotations (polar decomposition per group)",
             corot,
-            if corot {
-                "corotational"
-            } else {
-                "linear scene: R = I"
+            &match (corot, cut, tet10) {
+                (false, _, _) => "linear scene: R = I".to_string(),
+                (true, false, _) => "corotational".to_string(),
+                (true, true, false) => format!(
+                    "corotational; a side under {} of an element holding tip functions turns with its largest side",
+                    crate::model::SMALL_SIDE
+                ),
+                (true, true, true) => format!(
+                    "corotational; a side under {} of its element's volume turns with its largest side, in elements holding tip functions and in cut elements whose sides lie in one part (where a cut ends inside the body)",
+                    crate::model::SMALL_SIDE
+                ),
             },
         );
         match (corot, dynamic.map(|o| o.linear_solver)) {

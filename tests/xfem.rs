@@ -693,3 +693,158 @@ fn every_shipped_case_loads_and_the_free_slice_falls_out() {
     assert!((u[0].x - want).abs() <= 1e-6 * want, "slice: {:?}", u[0]);
     assert!(u[1].norm() < 1e-2 * want && u[2].norm() < 1e-2 * want);
 }
+
+/// A plane 1e-2 h beyond the nodes of a Tet10 cube leaves corners of
+/// ~1e-6 of their element on the nodes' side. Corotational, each such
+/// corner whose element's two sides lie in one part (a partial cut: the
+/// material goes round its front) is one dense group turned by its other
+/// side's rotation; across a through cut (two parts) it keeps a rotation
+/// per point, and linear groups never rotate. The groups stay invariant
+/// under rigid rotations and the exact tangent stays the Jacobian of the
+/// forces (central differences).
+#[test]
+fn a_tet10_corner_too_small_to_rotate_alone_turns_with_its_other_side() {
+    use nalgebra::{Rotation3, Unit};
+    use xfem_cut::assembly::{evaluate, Request, Rotations, Workspace};
+    use xfem_cut::cut::{setup_cut, CutInput, PlanarPatch, DEFAULT_SNAP};
+    use xfem_cut::material::Material;
+    use xfem_cut::mesh::box_mesh;
+    use xfem_cut::model::{Formulation, Model, ModelInput};
+    let mesh = box_mesh(Point3::origin(), Point3::new(1.0, 1.0, 1.0), [2, 2, 2]).to_tet10();
+    // The plane x + y + z = 1.5 + δ, δ = 1e-2 h (h = 0.5) above the nodes
+    // with coordinates summing to 1.5; tangents along (0, 1, −1), (−2, 1, 1).
+    let c = 1.5 + 1e-2 * 0.5 * 3f64.sqrt();
+    let u = Vector3::new(0.0, 3.0, -3.0);
+    let patch = |x_front: f64, reach: f64| {
+        let (y0, z0) = ((c - x_front) / 2.0, (c - x_front) / 2.0);
+        PlanarPatch {
+            origin: Point3::new(x_front, y0, z0) - u * 0.5,
+            u,
+            v: Vector3::new(-2.0, 1.0, 1.0) * reach,
+        }
+    };
+    // Partial: the front is the line x = 0.6 of the plane; through: x = 3.
+    let (partial, through) = (patch(0.6, 0.8), patch(3.0, 2.0));
+    let fixed: Vec<_> = (0..mesh.n_nodes())
+        .filter(|&i| mesh.nodes[i].z == 0.0)
+        .map(|i| (i, [Some(0.0); 3]))
+        .collect();
+    let build = |p: &PlanarPatch, formulation| {
+        let cut = setup_cut(&mesh, &[CutInput::extend(p, DEFAULT_SNAP)]).unwrap();
+        Model::build(ModelInput {
+            mesh: mesh.clone(),
+            material: Material {
+                young: 1e4,
+                poisson: 0.3,
+                density: 1000.0,
+            },
+            formulation,
+            cut: Some(cut),
+            fixed: fixed.clone(),
+            gravity: None,
+            body_force: None,
+            tractions: &[],
+            need_mass: false,
+        })
+        .unwrap()
+    };
+    let dense = |m: &Model| m.groups.iter().filter(|g| g.is_dense()).count();
+    let model = build(&partial, Formulation::Corotational);
+    let (n_partial, n_through, n_linear) = (
+        dense(&model),
+        dense(&build(&through, Formulation::Corotational)),
+        dense(&build(&partial, Formulation::Linear)),
+    );
+    println!("dense groups: partial {n_partial}, through {n_through}, linear {n_linear}");
+    assert!(n_partial > 0, "no small side turned with its other side");
+    assert_eq!((n_through, n_linear), (0, 0));
+
+    let n = model.n_dofs();
+    let forces = |d: &[f64]| {
+        let mut f = vec![0.0; n];
+        evaluate(
+            &model,
+            d,
+            &mut Rotations::identity(&model),
+            &mut Workspace::new(&model),
+            Request {
+                forces: Some(&mut f),
+                tangent: None,
+                update_rotations: true,
+                exact_tangent: false,
+            },
+        );
+        f
+    };
+    let norm = |f: &[f64]| f.iter().map(|x| x * x).sum::<f64>().sqrt();
+    // 60° about a skew axis: rigid (enriched DOFs 0), then strained, then
+    // every enriched DOF wobbled.
+    let rot = Rotation3::from_axis_angle(
+        &Unit::new_normalize(Vector3::new(1.0, 2.0, 0.5)),
+        std::f64::consts::FRAC_PI_3,
+    );
+    let mut d = vec![0.0; n];
+    for (i, p) in model.mesh.nodes.iter().enumerate() {
+        let x = p.coords;
+        d[3 * i..3 * i + 3].copy_from_slice((rot * x - x).as_slice());
+    }
+    let rigid = norm(&forces(&d));
+    for (i, p) in model.mesh.nodes.iter().enumerate() {
+        let x = p.coords;
+        let u = rot * Vector3::new(1.05 * x.x, x.y + 0.03 * (3.0 * x.z).sin(), x.z) - x;
+        d[3 * i..3 * i + 3].copy_from_slice(u.as_slice());
+    }
+    for (k, v) in d.iter_mut().enumerate().skip(3 * model.mesh.n_nodes()) {
+        *v = 0.01 * ((k as f64) * 0.7).sin();
+    }
+    let strained = norm(&forces(&d));
+    println!("forces of the rigid rotation {rigid:.2e}, of the strained state {strained:.2e}");
+    assert!(rigid <= 1e-10 * strained, "rigid rotation: {rigid:e}");
+
+    let nf = model.n_free;
+    let mut dof_of = vec![0; nf];
+    for (dof, &eq) in model.equation.iter().enumerate() {
+        if eq != xfem_cut::model::NONE {
+            dof_of[eq as usize] = dof;
+        }
+    }
+    let h = 1e-6;
+    let mut jac = nalgebra::DMatrix::<f64>::zeros(nf, nf);
+    let mut dd = d.clone();
+    for j in 0..nf {
+        let dof = dof_of[j];
+        dd[dof] = d[dof] + h;
+        let fp = forces(&dd);
+        dd[dof] = d[dof] - h;
+        let fm = forces(&dd);
+        dd[dof] = d[dof];
+        for i in 0..nf {
+            jac[(i, j)] = (fp[dof_of[i]] - fm[dof_of[i]]) / (2.0 * h);
+        }
+    }
+    let mut k = vec![0.0; model.pattern.nnz()];
+    evaluate(
+        &model,
+        &d,
+        &mut Rotations::identity(&model),
+        &mut Workspace::new(&model),
+        Request {
+            forces: None,
+            tangent: Some(&mut k),
+            update_rotations: true,
+            exact_tangent: true,
+        },
+    );
+    let mut tangent = nalgebra::DMatrix::<f64>::zeros(nf, nf);
+    let (mut e, mut y) = (vec![0.0; nf], vec![0.0; nf]);
+    for j in 0..nf {
+        e[j] = 1.0;
+        y.fill(0.0);
+        model.pattern.sym_mul_add(&k, &e, &mut y);
+        tangent.set_column(j, &nalgebra::DVector::from_column_slice(&y));
+        e[j] = 0.0;
+    }
+    let rel = (&tangent - &jac).norm() / jac.norm();
+    println!("exact tangent vs J of central differences {rel:.2e}");
+    assert!(rel <= 1e-6, "{rel:e}");
+}
