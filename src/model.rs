@@ -985,10 +985,18 @@ const NEAR_FRONT_DEPTH: usize = 1;
 const NEAR_FRONT_GAP: f64 = 0.5;
 
 /// Sides of a tip element under this fraction of its volume share the
-/// largest side's group (and rotation): see [`merge_small_sides`]; so do
-/// the small sides of corotational Tet10 cut elements whose sides lie in one
-/// part ([`Integrator::small_side`]).
+/// largest side's group (and rotation): see [`merge_small_sides`].
 pub const SMALL_SIDE: f64 = 1e-3;
+
+/// Sides of a corotational Tet10 cut element under this fraction of its
+/// volume turn with the other side where both lie in one part
+/// ([`Integrator::small_side`]). The smallest fraction that let every
+/// fuzz scene run: with 1e-5 one still stalled (seed 3012, whose inverted
+/// corner held 2.7e-6 of its element); the modelling change (a corner's
+/// stiffness against the two sides' relative rotation) grows with it: a
+/// soft static scene's probes moved by 1.6e-5 with 1e-4, by 5.0e-4 with
+/// [`SMALL_SIDE`]'s 1e-3.
+pub const SMALL_CUT_SIDE: f64 = 1e-4;
 
 /// Moves the points of each side of a tip element smaller than
 /// [`SMALL_SIDE`] of the element's volume into its largest side (columns,
@@ -1798,7 +1806,7 @@ impl Integrator<'_> {
     }
 
     /// The side of a cut element (with a rotation per point) under
-    /// [`SMALL_SIDE`] of its volume, where [`Integrator::joined`] lets it
+    /// [`SMALL_CUT_SIDE`] of its volume, where [`Integrator::joined`] lets it
     /// rotate with the other side, and the other side's centroid
     /// (barycentric in the element). A corner the cut leaves a few 1e-8 of
     /// a Tet10 (just beyond the snap) holds DOFs that little else
@@ -1824,7 +1832,7 @@ impl Integrator<'_> {
         }
         let total = volume[0] + volume[1];
         let s = if volume[0] < volume[1] { 0 } else { 1 };
-        if volume[s] <= 0.0 || volume[s] >= SMALL_SIDE * total {
+        if volume[s] <= 0.0 || volume[s] >= SMALL_CUT_SIDE * total {
             return None;
         }
         let other = 1 - s;
@@ -2871,7 +2879,7 @@ fn find_root(p: &mut [usize], mut i: usize) -> usize {
     i
 }
 
-/// Per element, whether a side of it under [`SMALL_SIDE`] of its volume
+/// Per element, whether a side of it under [`SMALL_CUT_SIDE`] of its volume
 /// takes the rotation of its other side ([`Integrator::standard_block`]):
 /// for corotational Tet10 with a rotation per point, where the element's
 /// two sides lie in one part ([`sides_in_one_part`]); `None` elsewhere

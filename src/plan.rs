@@ -153,8 +153,9 @@ impl Plan {
                     crate::model::SMALL_SIDE
                 ),
                 (true, true, true) => format!(
-                    "corotational; a side under {} of its element's volume turns with its largest side, in elements holding tip functions and in cut elements whose sides lie in one part (where a cut ends inside the body)",
-                    crate::model::SMALL_SIDE
+                    "corotational; a side under {} of an element holding tip functions turns with its largest side, and a side under {} of a cut element turns with the other where both lie in one part (a cut that ends inside the body)",
+                    crate::model::SMALL_SIDE,
+                    crate::model::SMALL_CUT_SIDE
                 ),
             },
         );
