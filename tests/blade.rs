@@ -2633,3 +2633,72 @@ rayleigh = { mass = 5.0, stiffness = 0.0 }
     assert!(run.d.iter().all(|x| x.is_finite()));
     assert_eq!(xfem_cut::assembly::inverted_groups(&run.model, &run.d), 0);
 }
+
+/// A blade sweeping the plane x + y + z = 1.5 + δ (δ = 1e-2 h) through a
+/// Tet10 cube, corotational: while its cut ends inside the body, the
+/// corners it leaves on the nodes of that layer turn with their elements'
+/// other sides (dense groups; the front is extended, so no element holds
+/// tip functions); once it is through, the two sides are two parts and the
+/// event that parts them integrates those elements again with a rotation
+/// per point: the model then has the groups of one built on the full cut.
+#[test]
+fn small_sides_turn_with_the_other_side_only_while_the_blade_has_not_parted_them() {
+    let mesh = xfem_cut::mesh::box_mesh(Point3::origin(), Point3::new(1.0, 1.0, 1.0), [2, 2, 2])
+        .to_tet10();
+    let n = Vector3::new(1.0, 1.0, 1.0).normalize();
+    let centre = Point3::new(0.5, 0.5, 0.5) + n * (1e-2 * 0.5);
+    let (edge, across) = (
+        Vector3::new(0.0, 1.0, -1.0).normalize() * 2.0,
+        Vector3::new(-2.0, 1.0, 1.0).normalize(),
+    );
+    let a = centre - across * 1.5 - edge;
+    let cuts = CutSet {
+        items: vec![CutItem::Blade(
+            Blade::straight(0, a, a + edge * 2.0, across * 3.0, 0.0, 0.1).unwrap(),
+        )],
+        snap: DEFAULT_SNAP,
+        front: xfem_cut::cut::FrontMode::Extend,
+        options: Vec::new(),
+    };
+    let build = |cut| {
+        let fixed: Vec<_> = (0..mesh.n_nodes())
+            .filter(|&i| mesh.nodes[i].z == 0.0 || mesh.nodes[i].z == 1.0)
+            .map(|i| (i, [Some(0.0); 3]))
+            .collect();
+        xfem_cut::model::Model::build(xfem_cut::model::ModelInput {
+            mesh: mesh.clone(),
+            material: xfem_cut::material::Material {
+                young: 1e4,
+                poisson: 0.3,
+                density: 1000.0,
+            },
+            formulation: Formulation::Corotational,
+            cut,
+            fixed,
+            gravity: Some(Vector3::new(3.0, -9.81, 2.0)),
+            body_force: None,
+            tractions: &[],
+            need_mass: true,
+        })
+    };
+    let opts = DynamicOptions {
+        dt: 0.01,
+        steps: 14,
+        ..DynamicOptions::default()
+    };
+    let dense = |m: &xfem_cut::model::Model| m.groups.iter().filter(|g| g.is_dense()).count();
+    let mut seen: Vec<usize> = Vec::new();
+    let run = run_dynamic(&cuts, &mesh, &build, opts, |_, m, _| seen.push(dense(m))).unwrap();
+    let full = build(cuts.completed(&mesh).unwrap()).unwrap();
+    println!(
+        "dense groups per step: {seen:?}; built on the full cut: {}",
+        dense(&full)
+    );
+    assert!(
+        seen.iter().any(|&d| d > 0),
+        "no small side turned with its other side while the cut was partial"
+    );
+    assert_eq!(dense(&full), 0);
+    assert_eq!(seen.last().copied(), Some(0));
+    assert!(run.state.d.iter().all(|x| x.is_finite()));
+}
