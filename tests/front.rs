@@ -429,8 +429,6 @@ fn cut_ends_at_the_front(kind: ElementKind) {
 /// their energy, so the Jacobian is symmetric and equals the tangent.
 #[test]
 fn corotational_exact_tangent_with_tip_dofs_matches_central_differences() {
-    use nalgebra::{Rotation3, Unit};
-    use xfem_cut::assembly::{evaluate, Request, Rotations, Workspace};
     let fr = Front::new();
     let patch = fr.patch();
     for kind in [ElementKind::Tet4, ElementKind::Tet10] {
@@ -453,88 +451,8 @@ fn corotational_exact_tangent_with_tip_dofs_matches_central_differences() {
             need_mass: false,
         })
         .unwrap();
-        // 60° about a skew axis, a 5 % stretch, and a wobble of every enriched DOF.
-        let rot = Rotation3::from_axis_angle(
-            &Unit::new_normalize(Vector3::new(1.0, 2.0, 0.5)),
-            std::f64::consts::FRAC_PI_3,
-        );
-        let n = model.n_dofs();
-        let mut d = vec![0.0; n];
-        for (i, p) in model.mesh.nodes.iter().enumerate() {
-            let x = p.coords;
-            let u = rot * Vector3::new(1.05 * x.x, x.y + 0.03 * (3.0 * x.z).sin(), x.z) - x;
-            d[3 * i..3 * i + 3].copy_from_slice(u.as_slice());
-        }
-        for (k, v) in d.iter_mut().enumerate().skip(3 * model.mesh.n_nodes()) {
-            *v = 0.01 * ((k as f64) * 0.7).sin();
-        }
-        let forces = |dd: &[f64]| {
-            let mut f = vec![0.0; n];
-            evaluate(
-                &model,
-                dd,
-                &mut Rotations::identity(&model),
-                &mut Workspace::new(&model),
-                Request {
-                    forces: Some(&mut f),
-                    tangent: None,
-                    update_rotations: true,
-                    exact_tangent: false,
-                },
-            );
-            f
-        };
-        // The whole Jacobian J of the forces on the free DOFs, column by column.
-        let nf = model.n_free;
-        let dof_of: Vec<usize> = {
-            let mut v = vec![0; nf];
-            for (dof, &eq) in model.equation.iter().enumerate() {
-                if eq != xfem_cut::model::NONE {
-                    v[eq as usize] = dof;
-                }
-            }
-            v
-        };
-        let h = 1e-6;
-        let mut jac = nalgebra::DMatrix::<f64>::zeros(nf, nf);
-        let mut dd = d.clone();
-        for j in 0..nf {
-            let dof = dof_of[j];
-            dd[dof] = d[dof] + h;
-            let fp = forces(&dd);
-            dd[dof] = d[dof] - h;
-            let fm = forces(&dd);
-            dd[dof] = d[dof];
-            for i in 0..nf {
-                jac[(i, j)] = (fp[dof_of[i]] - fm[dof_of[i]]) / (2.0 * h);
-            }
-        }
-        let mut k = vec![0.0; model.pattern.nnz()];
-        evaluate(
-            &model,
-            &d,
-            &mut Rotations::identity(&model),
-            &mut Workspace::new(&model),
-            Request {
-                forces: None,
-                tangent: Some(&mut k),
-                update_rotations: true,
-                exact_tangent: true,
-            },
-        );
-        let mut tangent = nalgebra::DMatrix::<f64>::zeros(nf, nf);
-        let mut e = vec![0.0; nf];
-        let mut y = vec![0.0; nf];
-        for j in 0..nf {
-            e[j] = 1.0;
-            y.fill(0.0);
-            model.pattern.sym_mul_add(&k, &e, &mut y);
-            tangent.set_column(j, &nalgebra::DVector::from_column_slice(&y));
-            e[j] = 0.0;
-        }
-        let symmetric = (&jac + jac.transpose()) * 0.5;
-        let rel = (&tangent - &jac).norm() / jac.norm();
-        let antisymmetric = (&jac - &symmetric).norm() / jac.norm();
+        let d = common::rotated_state(&model);
+        let (rel, antisymmetric) = common::tangent_against_central_differences(&model, &d);
         let dense = model.groups.iter().filter(|g| g.is_dense()).count();
         println!(
             "{kind:?}: {} groups ({dense} dense), tangent vs J of central differences \

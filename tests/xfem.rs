@@ -8,6 +8,8 @@ use xfem_cut::locate::Locator;
 use xfem_cut::run::{evaluate_at, solve_scene, RunResult};
 use xfem_cut::scene::Scene;
 
+mod common;
+
 /// A 1 × 1 × 2 bar, `div` hexes, cut by the plane z = `zc` across the whole
 /// section, `fixes` and `analysis` as TOML.
 fn bar(div: [usize; 3], zc: f64, extra: &str) -> Scene {
@@ -705,7 +707,6 @@ fn every_shipped_case_loads_and_the_free_slice_falls_out() {
 #[test]
 fn a_tet10_corner_too_small_to_rotate_alone_turns_with_its_other_side() {
     use nalgebra::{Rotation3, Unit};
-    use xfem_cut::assembly::{evaluate, Request, Rotations, Workspace};
     use xfem_cut::cut::{setup_cut, CutInput, PlanarPatch, DEFAULT_SNAP};
     use xfem_cut::material::Material;
     use xfem_cut::mesh::box_mesh;
@@ -759,92 +760,24 @@ fn a_tet10_corner_too_small_to_rotate_alone_turns_with_its_other_side() {
     assert!(n_partial > 0, "no small side turned with its other side");
     assert_eq!((n_through, n_linear), (0, 0));
 
-    let n = model.n_dofs();
-    let forces = |d: &[f64]| {
-        let mut f = vec![0.0; n];
-        evaluate(
-            &model,
-            d,
-            &mut Rotations::identity(&model),
-            &mut Workspace::new(&model),
-            Request {
-                forces: Some(&mut f),
-                tangent: None,
-                update_rotations: true,
-                exact_tangent: false,
-            },
-        );
-        f
-    };
     let norm = |f: &[f64]| f.iter().map(|x| x * x).sum::<f64>().sqrt();
-    // 60° about a skew axis: rigid (enriched DOFs 0), then strained, then
-    // every enriched DOF wobbled.
+    // 60° about a skew axis: rigid (enriched DOFs 0), then strained, every
+    // enriched DOF wobbled.
     let rot = Rotation3::from_axis_angle(
         &Unit::new_normalize(Vector3::new(1.0, 2.0, 0.5)),
         std::f64::consts::FRAC_PI_3,
     );
-    let mut d = vec![0.0; n];
+    let mut d = vec![0.0; model.n_dofs()];
     for (i, p) in model.mesh.nodes.iter().enumerate() {
         let x = p.coords;
         d[3 * i..3 * i + 3].copy_from_slice((rot * x - x).as_slice());
     }
-    let rigid = norm(&forces(&d));
-    for (i, p) in model.mesh.nodes.iter().enumerate() {
-        let x = p.coords;
-        let u = rot * Vector3::new(1.05 * x.x, x.y + 0.03 * (3.0 * x.z).sin(), x.z) - x;
-        d[3 * i..3 * i + 3].copy_from_slice(u.as_slice());
-    }
-    for (k, v) in d.iter_mut().enumerate().skip(3 * model.mesh.n_nodes()) {
-        *v = 0.01 * ((k as f64) * 0.7).sin();
-    }
-    let strained = norm(&forces(&d));
+    let rigid = norm(&common::internal_forces(&model, &d));
+    let d = common::rotated_state(&model);
+    let strained = norm(&common::internal_forces(&model, &d));
     println!("forces of the rigid rotation {rigid:.2e}, of the strained state {strained:.2e}");
     assert!(rigid <= 1e-10 * strained, "rigid rotation: {rigid:e}");
-
-    let nf = model.n_free;
-    let mut dof_of = vec![0; nf];
-    for (dof, &eq) in model.equation.iter().enumerate() {
-        if eq != xfem_cut::model::NONE {
-            dof_of[eq as usize] = dof;
-        }
-    }
-    let h = 1e-6;
-    let mut jac = nalgebra::DMatrix::<f64>::zeros(nf, nf);
-    let mut dd = d.clone();
-    for j in 0..nf {
-        let dof = dof_of[j];
-        dd[dof] = d[dof] + h;
-        let fp = forces(&dd);
-        dd[dof] = d[dof] - h;
-        let fm = forces(&dd);
-        dd[dof] = d[dof];
-        for i in 0..nf {
-            jac[(i, j)] = (fp[dof_of[i]] - fm[dof_of[i]]) / (2.0 * h);
-        }
-    }
-    let mut k = vec![0.0; model.pattern.nnz()];
-    evaluate(
-        &model,
-        &d,
-        &mut Rotations::identity(&model),
-        &mut Workspace::new(&model),
-        Request {
-            forces: None,
-            tangent: Some(&mut k),
-            update_rotations: true,
-            exact_tangent: true,
-        },
-    );
-    let mut tangent = nalgebra::DMatrix::<f64>::zeros(nf, nf);
-    let (mut e, mut y) = (vec![0.0; nf], vec![0.0; nf]);
-    for j in 0..nf {
-        e[j] = 1.0;
-        y.fill(0.0);
-        model.pattern.sym_mul_add(&k, &e, &mut y);
-        tangent.set_column(j, &nalgebra::DVector::from_column_slice(&y));
-        e[j] = 0.0;
-    }
-    let rel = (&tangent - &jac).norm() / jac.norm();
+    let (rel, _) = common::tangent_against_central_differences(&model, &d);
     println!("exact tangent vs J of central differences {rel:.2e}");
     assert!(rel <= 1e-6, "{rel:e}");
 }

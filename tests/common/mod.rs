@@ -159,3 +159,98 @@ pub fn run_scene(scene: &xfem_cut::scene::Scene) -> xfem_cut::blade::Progressive
     };
     run_dynamic(&cuts, &mesh, &build, options, |_, _, _| {}).unwrap()
 }
+
+/// A large corotational state of `model`: every node turned 60° about a
+/// skew axis after a 5 % stretch and a wobble, every enriched DOF wobbled.
+pub fn rotated_state(model: &Model) -> Vec<f64> {
+    let rot = nalgebra::Rotation3::from_axis_angle(
+        &nalgebra::Unit::new_normalize(Vector3::new(1.0, 2.0, 0.5)),
+        std::f64::consts::FRAC_PI_3,
+    );
+    let mut d = vec![0.0; model.n_dofs()];
+    for (i, p) in model.mesh.nodes.iter().enumerate() {
+        let x = p.coords;
+        let u = rot * Vector3::new(1.05 * x.x, x.y + 0.03 * (3.0 * x.z).sin(), x.z) - x;
+        d[3 * i..3 * i + 3].copy_from_slice(u.as_slice());
+    }
+    for (k, v) in d.iter_mut().enumerate().skip(3 * model.mesh.n_nodes()) {
+        *v = 0.01 * ((k as f64) * 0.7).sin();
+    }
+    d
+}
+
+/// The internal forces (all DOFs) at `d`, each group's rotation its polar
+/// rotation there.
+pub fn internal_forces(model: &Model, d: &[f64]) -> Vec<f64> {
+    use xfem_cut::assembly::{evaluate, Request, Rotations, Workspace};
+    let mut f = vec![0.0; model.n_dofs()];
+    evaluate(
+        model,
+        d,
+        &mut Rotations::identity(model),
+        &mut Workspace::new(model),
+        Request {
+            forces: Some(&mut f),
+            tangent: None,
+            update_rotations: true,
+            exact_tangent: false,
+        },
+    );
+    f
+}
+
+/// The exact corotational tangent at `d` against the whole Jacobian J of
+/// [`internal_forces`] on the free DOFs, column by column by central
+/// differences (step 1e-6): ‖K − J‖ / ‖J‖ and the antisymmetric part of J,
+/// ‖J − sym J‖ / ‖J‖.
+pub fn tangent_against_central_differences(model: &Model, d: &[f64]) -> (f64, f64) {
+    use xfem_cut::assembly::{evaluate, Request, Rotations, Workspace};
+    let nf = model.n_free;
+    let mut dof_of = vec![0; nf];
+    for (dof, &eq) in model.equation.iter().enumerate() {
+        if eq != xfem_cut::model::NONE {
+            dof_of[eq as usize] = dof;
+        }
+    }
+    let h = 1e-6;
+    let mut jac = nalgebra::DMatrix::<f64>::zeros(nf, nf);
+    let mut dd = d.to_vec();
+    for j in 0..nf {
+        let dof = dof_of[j];
+        dd[dof] = d[dof] + h;
+        let fp = internal_forces(model, &dd);
+        dd[dof] = d[dof] - h;
+        let fm = internal_forces(model, &dd);
+        dd[dof] = d[dof];
+        for i in 0..nf {
+            jac[(i, j)] = (fp[dof_of[i]] - fm[dof_of[i]]) / (2.0 * h);
+        }
+    }
+    let mut k = vec![0.0; model.pattern.nnz()];
+    evaluate(
+        model,
+        d,
+        &mut Rotations::identity(model),
+        &mut Workspace::new(model),
+        Request {
+            forces: None,
+            tangent: Some(&mut k),
+            update_rotations: true,
+            exact_tangent: true,
+        },
+    );
+    let mut tangent = nalgebra::DMatrix::<f64>::zeros(nf, nf);
+    let (mut e, mut y) = (vec![0.0; nf], vec![0.0; nf]);
+    for j in 0..nf {
+        e[j] = 1.0;
+        y.fill(0.0);
+        model.pattern.sym_mul_add(&k, &e, &mut y);
+        tangent.set_column(j, &nalgebra::DVector::from_column_slice(&y));
+        e[j] = 0.0;
+    }
+    let symmetric = (&jac + jac.transpose()) * 0.5;
+    (
+        (&tangent - &jac).norm() / jac.norm(),
+        (&jac - &symmetric).norm() / jac.norm(),
+    )
+}
