@@ -175,6 +175,30 @@ pub fn inverted_groups(model: &Model, d: &[f64]) -> usize {
     inverted
 }
 
+/// The reference volume of the integration groups whose deformation
+/// gradient at `d` (all DOFs) has det F ≤ 0, as a fraction of the body's
+/// (the sum of all groups' weights): where [`inverted_groups`] counts, this
+/// weighs, so that a sliver side of a cut element turned inside out counts
+/// for its volume, not as a collapsing element.
+pub fn inverted_fraction(model: &Model, d: &[f64]) -> f64 {
+    let mut ws = Workspace::new(model);
+    let mut inverted = 0.0;
+    for_each_group(
+        model,
+        0..model.elements.len(),
+        d,
+        &mut ws.disp,
+        &mut ws.scratch,
+        |g, _, _, _, f, _| {
+            if f.determinant() <= 0.0 {
+                inverted += model.groups[g].weight;
+            }
+        },
+    );
+    let volume: f64 = model.groups.iter().map(|g| g.weight).sum();
+    inverted / volume
+}
+
 /// Adds the element vector `fa` of shape function `a` into the all-DOF vector `out`.
 fn add_nodal(out: &mut [f64], shapes: &[u32], a: usize, fa: &Vector3<f64>) {
     let s = shapes[a] as usize;

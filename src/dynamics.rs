@@ -115,6 +115,14 @@ fn copy_state(to: &mut State, from: &State) {
 /// the step gives up ([`Newmark::step`]): sub-steps down to 1/16 of it.
 pub const MAX_STEP_HALVINGS: usize = 4;
 
+/// The share of the body's volume inverted (det F ≤ 0) beyond which halves
+/// of a failed step count as a body collapsing, not a step too large, and
+/// rescue nothing ([`Newmark::step`]). Below it lie the slivers a cut leaves
+/// (sides of a few 1e-3 of one element, which a soft scene can turn inside
+/// out while the body around them is sound); one element of a 1k-element
+/// mesh lies above it.
+pub const COLLAPSED_FRACTION: f64 = 1e-4;
+
 /// How a linear scene's first step after a cut event solves its grown K_eff
 /// (`blade::run_dynamic` hands the integrator the factor of the previous one).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -1253,8 +1261,9 @@ impl<'m> Newmark<'m> {
     /// before a step) as two steps of half the size, each halved again where it
     /// fails, down to 1/2^[`MAX_STEP_HALVINGS`] of the step. The whole
     /// step's failure is returned when that fails too, or when the halves
-    /// end with inverted elements (a column collapsing onto its clamp is
-    /// reported, not carried on inverted). (A top face moved by 4 % of the
+    /// end with more than [`COLLAPSED_FRACTION`] of the body inverted (a
+    /// column collapsing onto its clamp is reported, not carried on
+    /// inverted). (A top face moved by 4 % of the
     /// beam in one step, ν = 0.49, Tet10: Newton failed at the second step;
     /// in halves it runs.)
     pub fn step(&mut self) -> Result<StepReport, DynamicError> {
@@ -1305,8 +1314,14 @@ impl<'m> Newmark<'m> {
         self.factored = false;
         // Halves that end with inverted elements (a body collapsing, not a
         // step too large) rescue nothing: the whole step's failure stands.
+        // Slivers of cut elements turned inside out are no collapse (a
+        // step that converges with them goes on as well): only more than
+        // COLLAPSED_FRACTION of the body's volume inverted counts.
         match halves {
-            Ok(report) if crate::assembly::inverted_groups(self.model, &self.state.d) == 0 => {
+            Ok(report)
+                if crate::assembly::inverted_fraction(self.model, &self.state.d)
+                    <= COLLAPSED_FRACTION =>
+            {
                 Ok(report)
             }
             _ => {
