@@ -11,6 +11,11 @@ use xfem_cut::model::Formulation;
 use xfem_cut::solve::{BorderedSolve, Cholesky, BORDER_TOLERANCE};
 use xfem_cut::study::fixtures::{beam_mesh, seed_beam, seed_blade};
 
+/// The allocator the `xfem-cut` binary and the benches run with (see
+/// `src/main.rs`), so that what this times is what a run pays.
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn main() {
     let args: Vec<usize> = std::env::args()
         .skip(1)

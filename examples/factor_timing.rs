@@ -8,6 +8,12 @@ mod common;
 use std::time::Instant;
 use xfem_cut::assembly::{equation_shapes, evaluate, Request, Rotations, Workspace};
 use xfem_cut::solve::{Cholesky, Parallelism};
+
+/// The allocator the `xfem-cut` binary and the benches run with (see
+/// `src/main.rs`), so that what this times is what a run pays.
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn main() {
     let m = common::clamped_beam([6, 12, 24]);
     let threads: usize = std::env::var("XFEM_THREADS").map_or(1, |s| s.parse().expect("threads"));

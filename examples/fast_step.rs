@@ -22,6 +22,11 @@ use xfem_cut::dynamics::{DynamicOptions, LinearSolver, Newmark, DEFAULT_LAGGED};
 use xfem_cut::scene::{Analysis, Scene};
 use xfem_cut::solve::{Cholesky, Parallelism};
 
+/// The allocator the `xfem-cut` binary and the benches run with (see
+/// `src/main.rs`), so that what this times is what a run pays.
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let file = args

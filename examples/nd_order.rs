@@ -13,6 +13,11 @@ use std::collections::VecDeque;
 use std::time::Instant;
 use xfem_cut::assembly::{evaluate, Request, Rotations, Workspace};
 
+/// The allocator the `xfem-cut` binary and the benches run with (see
+/// `src/main.rs`), so that what this times is what a run pays.
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn adjacency(n: usize, col_ptr: &[usize], row_idx: &[usize]) -> Vec<Vec<usize>> {
     let mut adj = vec![Vec::new(); n];
     for c in 0..n {

@@ -11,6 +11,11 @@ use xfem_cut::model::Model;
 use xfem_cut::scene::Scene;
 use xfem_cut::solve::{Cholesky, Ordering, Parallelism};
 
+/// The allocator the `xfem-cut` binary and the benches run with (see
+/// `src/main.rs`), so that what this times is what a run pays.
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn model(div: [usize; 3], element: &str, cut: bool) -> Model {
     let cut = if cut {
         "[[cut]]\norigin = [0.0, 0.0, 0.1]\nu = [0.015, 0.0, 0.0]\nv = [0.0, 0.06, 0.0]\n"

@@ -12,6 +12,11 @@ use xfem_cut::assembly::{equation_shapes, evaluate, Request, Rotations, Workspac
 use xfem_cut::scene::Scene;
 use xfem_cut::solve::{Cholesky, Ordering, Parallelism};
 
+/// The allocator the `xfem-cut` binary and the benches run with (see
+/// `src/main.rs`), so that what this times is what a run pays.
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }

@@ -10,6 +10,11 @@ use xfem_cut::assembly::{equation_shapes, evaluate, Request, Rotations, Workspac
 use xfem_cut::scene::Scene;
 use xfem_cut::solve::{Cholesky, Parallelism};
 
+/// The allocator the `xfem-cut` binary and the benches run with (see
+/// `src/main.rs`), so that what this times is what a run pays.
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let [case, mesh] = &args[..] else {

@@ -35,6 +35,11 @@ use xfem_cut::model::{Formulation, Model};
 use xfem_cut::solve::{Cholesky, Parallelism};
 use xfem_cut::study::fixtures::{beam_mesh, seed_beam};
 
+/// The allocator the `xfem-cut` binary and the benches run with (see
+/// `src/main.rs`), so that what this times is what a run pays.
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 /// Median wall time (ms) of `f` over repeated calls (≥ 5, about 0.4 s in all).
 fn median_ms(mut f: impl FnMut()) -> f64 {
     let t = Instant::now();

@@ -20,6 +20,11 @@ use xfem_cut::model::Formulation;
 use xfem_cut::study::fixtures::{beam_mesh, seed_beam, seed_blade};
 use xfem_cut::study::sweep;
 
+/// The allocator the `xfem-cut` binary and the benches run with (see
+/// `src/main.rs`), so that what this times is what a run pays.
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let div: Vec<usize> = args.iter().take(3).map_while(|a| a.parse().ok()).collect();

@@ -23,6 +23,11 @@ use xfem_cut::model::Formulation;
 use xfem_cut::solve::{Cholesky, Parallelism};
 use xfem_cut::study::fixtures::{beam_mesh, seed_beam, seed_blade};
 
+/// The allocator the `xfem-cut` binary and the benches run with (see
+/// `src/main.rs`), so that what this times is what a run pays.
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn median(mut f: impl FnMut(), reps: usize) -> f64 {
     let mut t: Vec<f64> = (0..reps)
         .map(|_| {
