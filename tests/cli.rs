@@ -110,6 +110,33 @@ fn bad_input_gives_one_line_errors_naming_the_key() {
     }
 }
 
+/// Newmark's parameters: γ ≥ ½ and β ≥ (γ + ½)²/4 are accepted on the
+/// bound itself, written out as people write it (γ = 0.6, β = 0.3025: the
+/// product rounds to 0.30250000000000005, which refused it before), and
+/// refused, naming the key, below it.
+#[test]
+fn newmark_parameters_on_the_stability_bound_are_accepted() {
+    let dynamic = |newmark: &str| {
+        GOOD.replace(
+            "type = \"static\"",
+            &format!("type = \"dynamic\"\ndt = 0.01\nsteps = 2\nnewmark = {{ {newmark} }}"),
+        )
+    };
+    for (gamma, beta) in [(0.6, 0.3025), (0.7, 0.36), (0.5, 0.25), (0.9, 0.49)] {
+        let text = dynamic(&format!("beta = {beta}, gamma = {gamma}"));
+        let scene = xfem_cut::scene::Scene::parse(&text, Path::new("case.toml"));
+        assert!(scene.is_ok(), "γ = {gamma}, β = {beta}: {:?}", scene.err());
+    }
+    let text = dynamic("beta = 0.3, gamma = 0.6");
+    let err = xfem_cut::scene::Scene::parse(&text, Path::new("case.toml"))
+        .expect_err("below the bound")
+        .to_string();
+    assert!(
+        err.contains("case.toml") && err.contains("analysis.newmark") && err.contains("0.3"),
+        "{err}"
+    );
+}
+
 #[test]
 fn a_body_free_to_move_is_refused() {
     // Only z is held: the body can slide in x and y.

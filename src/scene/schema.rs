@@ -890,7 +890,9 @@ fn validate_analysis(c: &Checker, a: AnalysisFile) -> Result<(Formulation, Analy
             if let Some(n) = a.newmark {
                 o.beta = c.positive("analysis.newmark.beta", n.beta)?;
                 o.gamma = c.positive("analysis.newmark.gamma", n.gamma)?;
-                if o.gamma < 0.5 || o.beta < 0.25 * (o.gamma + 0.5).powi(2) {
+                // (A relative 1e-12 below the bound: β = (γ + ½)²/4 written
+                // out, e.g. 0.3025 for γ = 0.6, rounds below the product.)
+                if o.gamma < 0.5 || o.beta < 0.25 * (o.gamma + 0.5).powi(2) * (1.0 - 1e-12) {
                     return Err(c.err("analysis.newmark", format!("beta = {}, gamma = {} is not unconditionally stable (need gamma >= 0.5, beta >= (gamma + 0.5)^2 / 4)", o.beta, o.gamma)));
                 }
             }
