@@ -292,7 +292,7 @@ fn inverted_hint(inverted: usize) -> String {
     match inverted {
         0 => String::new(),
         n => format!(
-            "; {n} integration groups inverted (det F <= 0): a smaller dt, a ramp or a stiffer material may let the mesh follow"
+            "; {n} integration groups inverted (det F <= 0): a smaller dt, a ramp, stiffness damping (analysis.rayleigh.stiffness) or a stiffer material may let the mesh follow"
         ),
     }
 }
