@@ -155,23 +155,29 @@ fn for_each_group(
     }
 }
 
-/// Integration groups whose deformation gradient at `d` (all DOFs) has
-/// det F ≤ 0: inverted elements (or sides of cut elements).
-pub fn inverted_groups(model: &Model, d: &[f64]) -> usize {
+/// The integration groups whose deformation gradient at `d` (all DOFs)
+/// has det F ≤ 0, each as `visit(group)`.
+fn for_each_inverted(model: &Model, d: &[f64], mut visit: impl FnMut(usize)) {
     let mut ws = Workspace::new(model);
-    let mut inverted = 0;
     for_each_group(
         model,
         0..model.elements.len(),
         d,
         &mut ws.disp,
         &mut ws.scratch,
-        |_, _, _, _, f, _| {
+        |g, _, _, _, f, _| {
             if f.determinant() <= 0.0 {
-                inverted += 1;
+                visit(g);
             }
         },
     );
+}
+
+/// Integration groups whose deformation gradient at `d` (all DOFs) has
+/// det F ≤ 0: inverted elements (or sides of cut elements).
+pub fn inverted_groups(model: &Model, d: &[f64]) -> usize {
+    let mut inverted = 0;
+    for_each_inverted(model, d, |_| inverted += 1);
     inverted
 }
 
@@ -181,20 +187,8 @@ pub fn inverted_groups(model: &Model, d: &[f64]) -> usize {
 /// weighs, so that a sliver side of a cut element turned inside out counts
 /// for its volume, not as a collapsing element.
 pub fn inverted_fraction(model: &Model, d: &[f64]) -> f64 {
-    let mut ws = Workspace::new(model);
     let mut inverted = 0.0;
-    for_each_group(
-        model,
-        0..model.elements.len(),
-        d,
-        &mut ws.disp,
-        &mut ws.scratch,
-        |g, _, _, _, f, _| {
-            if f.determinant() <= 0.0 {
-                inverted += model.groups[g].weight;
-            }
-        },
-    );
+    for_each_inverted(model, d, |g| inverted += model.groups[g].weight);
     let volume: f64 = model.groups.iter().map(|g| g.weight).sum();
     inverted / volume
 }
