@@ -849,7 +849,7 @@ pub fn same_setup(a: Option<&CutSetup>, b: Option<&CutSetup>) -> bool {
 /// current edge: once the edge has left the body a step moves nothing
 /// inside it, but ψ moves by ~1e-17 m; an exact comparison made that step
 /// an event, whose projection onto the same functions (the rates' damped
-/// fit, [`RATES_DAMPING`]) changed the kinetic energy by 1e-3 and the
+/// fit of then) changed the kinetic energy by 1e-3 and the
 /// trajectory by 1e-4 (a random Tet10 sweep as a straight three-keyframe
 /// path against the same travel, found by the CLI fuzz).
 fn close_levels(a: &[f64], b: &[f64]) -> bool {
@@ -981,11 +981,11 @@ pub enum GramSolve {
 pub struct Projection {
     /// Scalar shape functions fitted (3 DOFs each).
     pub fitted: usize,
-    /// The displacement's system (H¹ Gram) and the velocity's and acceleration's (L² Gram).
-    pub displacement: GramSolve,
-    pub rates: GramSolve,
+    /// How the Gram system (the displacement's, velocity's and
+    /// acceleration's, one energy-weighted norm) was solved.
+    pub solve: GramSolve,
     /// Smallest over largest eigenvalue (pseudo-inverse) or squared pivot
-    /// (Cholesky) of the scaled Gram matrices, the smaller of the two.
+    /// (Cholesky) of the scaled Gram matrix.
     pub conditioning: f64,
 }
 
@@ -1014,15 +1014,23 @@ const GRADIENT_WEIGHT: f64 = 0.25;
 /// elements holding tip functions in `old` or `new` (where the field
 /// changed); the others keep their mapped values. Over the elements holding
 /// an F shape function (the quadrature points of [`Model::field_points`],
-/// side by side) F minimises, for the displacement, the energy-weighted
-/// misfit ∫ |e|² + β ε(e):C:ε(e)/μ (β = [`GRADIENT_WEIGHT`] h² per
-/// element, e = u_new − u_old; one system for the three components, which
-/// the strain couples), and for the velocity and acceleration the L² misfit
-/// ∫ |e|² (one scalar Gram matrix for the three components): G a_F = the
-/// same forms of the shape functions against r = u_old − Σ_{b∉F} φ_b a_b.
-/// Each Gram matrix is scaled to unit diagonal and solved by Cholesky, or
-/// where its pivots reach round-off by a pseudo-inverse ([`GramSolve`]);
-/// the returned [`Projection`] says which. Nothing is done (`None`) without
+/// side by side) F minimises, for the displacement, the velocity and the
+/// acceleration alike, the energy-weighted misfit ∫ |e|² + β ε(e):C:ε(e)/μ
+/// (β = [`GRADIENT_WEIGHT`] h² per element, e = u_new − u_old, v_new −
+/// v_old or a_new − a_old; one system for the three components, which the
+/// strain couples): G a_F = the same form of the shape functions against
+/// r = u_old − Σ_{b∉F} φ_b a_b. The rates take the strain term too: with
+/// the L² misfit alone (and a Tikhonov damping of 1e-7 against nearly
+/// dependent functions) the velocity of a Heaviside function whose other
+/// side is a corner of 1e-6 of its elements, where it and its neighbours'
+/// functions are O(δ²), was fitted by coefficients of 1e4 m/s where the
+/// body moved at 0.4 m/s: the kinetic energy stayed, but the corner's
+/// strain rate inverted it within the next step (a soft Tet10 gmsh beam
+/// whose blade frees its top, Newton failed at t = 0.19 s; with the strain
+/// term it runs, and needs no damping). The Gram matrix is scaled to unit
+/// diagonal and solved by Cholesky, or where its pivots reach round-off by
+/// a pseudo-inverse ([`GramSolve`]); the returned [`Projection`] says
+/// which. Nothing is done (`None`) without
 /// tip nodes (shifted Heaviside DOFs starting at zero keep the field
 /// exactly). A field the new space holds on those elements (a linear one,
 /// say) is reproduced to round-off.
@@ -1037,15 +1045,14 @@ pub fn project_tip_change(
 
 /// What [`project_tip_change`] integrates on one element: its fitted
 /// functions (local index, slot), the strain term's weight β, the L² and
-/// gradient Gram products (nl × nl, 3nl × 3nl) and the right-hand sides
-/// (the displacement's 3 nl, the velocity's and acceleration's nl × 6).
+/// gradient Gram products (nl × nl, 3nl × 3nl) and the right-hand sides of
+/// the displacement, the velocity and the acceleration (3 nl each).
 struct ElementFit {
     local: Vec<(usize, usize)>,
     beta: f64,
     l2: nalgebra::DMatrix<f64>,
     g2: nalgebra::DMatrix<f64>,
-    rhs_d: Vec<f64>,
-    rhs_l: nalgebra::DMatrix<f64>,
+    rhs: [Vec<f64>; 3],
 }
 
 /// [`project_tip_change`] with the elements integrated on `parallelism`'s
@@ -1130,9 +1137,9 @@ fn project_fitted(
     let nf = fitted.len();
     // λ/μ of the strain term.
     let ratio = new.lame.lambda / new.lame.mu;
-    // The displacement's Gram (3 nf: component c of function k at 3k + c)
-    // and right-hand side; the L² Gram of v and a and their 6 columns.
-    // Fitted functions sharing an element couple: the displacement's Gram
+    // The Gram matrix (3 nf: component c of function k at 3k + c) and the
+    // right-hand sides of d, v and a.
+    // Fitted functions sharing an element couple: the Gram
     // is sparse (a dense one of 3 nf = 1,500 took 35 ms to factorise).
     let local_slots = |e: usize| -> Vec<usize> {
         new.element_shapes(e)
@@ -1153,9 +1160,7 @@ fn project_fitted(
         }
     }
     let mut gram_d = BlockGram::new(below);
-    let mut gram_l = nalgebra::DMatrix::<f64>::zeros(nf, nf);
-    let mut rhs_d = vec![0.0; 3 * nf];
-    let mut rhs_l = nalgebra::DMatrix::<f64>::zeros(nf, 6);
+    let mut rhs = [vec![0.0; 3 * nf], vec![0.0; 3 * nf], vec![0.0; 3 * nf]];
     let dof = |x: &[f64], s: u32| {
         let s = s as usize;
         Vector3::new(x[3 * s], x[3 * s + 1], x[3 * s + 2])
@@ -1200,42 +1205,42 @@ fn project_fitted(
         let mut a_val = nalgebra::DMatrix::<f64>::zeros(nl, np);
         let mut a_grad = nalgebra::DMatrix::<f64>::zeros(3 * nl, np);
         let mut weights = Vec::with_capacity(np);
-        let mut rhs_d = vec![0.0; 3 * nl];
-        let mut rhs_l = nalgebra::DMatrix::<f64>::zeros(nl, 6);
+        let mut rhs = [vec![0.0; 3 * nl], vec![0.0; 3 * nl], vec![0.0; 3 * nl]];
         for (q, &(x, w, side)) in points.iter().enumerate() {
             ev_new.eval(&x, side, &mut vals, &mut grads);
             // The old field on the side x lies on in the old element.
             ev_old.eval(&x, ev_old.side_at(&x, side), &mut old_vals, &mut old_grads);
-            // Residual r and (for d) its gradient ∇r (row c = ∇r_c).
+            // Residuals r of d, v and a and their gradients ∇r (row c = ∇r_c).
             let mut r = [Vector3::zeros(); 3];
-            let mut gr = Matrix3::zeros();
+            let mut gr = [Matrix3::zeros(); 3];
             for (a, &s) in old_ids.iter().enumerate() {
-                let da = dof(&state.d, s);
-                r[0] += da * old_vals[a];
-                gr += da * old_grads[a].transpose();
-                r[1] += dof(&state.v, s) * old_vals[a];
-                r[2] += dof(&state.a, s) * old_vals[a];
+                for (f, x) in [&state.d, &state.v, &state.a].into_iter().enumerate() {
+                    let xa = dof(x, s);
+                    r[f] += xa * old_vals[a];
+                    gr[f] += xa * old_grads[a].transpose();
+                }
             }
             for (a, &s) in ids.iter().enumerate() {
                 if slot[s as usize] == usize::MAX {
-                    let da = dof(&mapped.d, s);
-                    r[0] -= da * vals[a];
-                    gr -= da * grads[a].transpose();
-                    r[1] -= dof(&mapped.v, s) * vals[a];
-                    r[2] -= dof(&mapped.a, s) * vals[a];
+                    for (f, x) in [&mapped.d, &mapped.v, &mapped.a].into_iter().enumerate() {
+                        let xa = dof(x, s);
+                        r[f] -= xa * vals[a];
+                        gr[f] -= xa * grads[a].transpose();
+                    }
                 }
             }
-            // ε(r):C:ε(φ e_c)/μ = (λ/μ) div r ∂_c φ + (∇r + ∇rᵀ)_c · ∇φ.
-            let sym = gr + gr.transpose();
-            let div = gr.trace() * ratio;
             weights.push(w);
             for (i, &(a, _)) in local.iter().enumerate() {
                 let (va, ga) = (w * vals[a], grads[a] * w);
-                let strain = sym * ga * beta;
+                for f in 0..3 {
+                    // ε(r):C:ε(φ e_c)/μ = (λ/μ) div r ∂_c φ + (∇r + ∇rᵀ)_c · ∇φ.
+                    let strain = (gr[f] + gr[f].transpose()) * ga * beta;
+                    let div = gr[f].trace() * ratio;
+                    for c in 0..3 {
+                        rhs[f][3 * i + c] += va * r[f][c] + strain[c] + beta * div * ga[c];
+                    }
+                }
                 for c in 0..3 {
-                    rhs_d[3 * i + c] += va * r[0][c] + strain[c] + beta * div * ga[c];
-                    rhs_l[(i, c)] += va * r[1][c];
-                    rhs_l[(i, 3 + c)] += va * r[2][c];
                     a_grad[(c * nl + i, q)] = grads[a][c];
                 }
                 a_val[(i, q)] = vals[a];
@@ -1256,22 +1261,19 @@ fn project_fitted(
             beta,
             l2,
             g2,
-            rhs_d,
-            rhs_l,
+            rhs,
         }
     });
     for fit in fits {
         let (local, beta, l2, g2) = (&fit.local, fit.beta, &fit.l2, &fit.g2);
         let nl = local.len();
         for (i, &(_, sa)) in local.iter().enumerate() {
-            for c in 0..3 {
-                rhs_d[3 * sa + c] += fit.rhs_d[3 * i + c];
-            }
-            for c in 0..6 {
-                rhs_l[(sa, c)] += fit.rhs_l[(i, c)];
+            for (total, own) in rhs.iter_mut().zip(&fit.rhs) {
+                for c in 0..3 {
+                    total[3 * sa + c] += own[3 * i + c];
+                }
             }
             for (j, &(_, sb)) in local.iter().enumerate() {
-                gram_l[(sa, sb)] += l2[(i, j)];
                 // The lower triangle (component c of function k is 3k + c).
                 if sa < sb {
                     continue;
@@ -1295,20 +1297,18 @@ fn project_fitted(
             }
         }
     }
-    let (x_d, displacement, cond_d) = gram_d.solve(rhs_d);
-    let (x_l, rates, cond_l) = solve_gram(gram_l, rhs_l, RATES_DAMPING);
+    let (x, how, conditioning) = gram_d.solve(rhs.into());
     for (k, &s) in fitted.iter().enumerate() {
         for c in 0..3 {
-            mapped.d[3 * s + c] = x_d[3 * k + c];
-            mapped.v[3 * s + c] = x_l[(k, c)];
-            mapped.a[3 * s + c] = x_l[(k, 3 + c)];
+            mapped.d[3 * s + c] = x[0][3 * k + c];
+            mapped.v[3 * s + c] = x[1][3 * k + c];
+            mapped.a[3 * s + c] = x[2][3 * k + c];
         }
     }
     Some(Projection {
         fitted: nf,
-        displacement,
-        rates,
-        conditioning: cond_d.min(cond_l),
+        solve: how,
+        conditioning,
     })
 }
 
@@ -1328,7 +1328,7 @@ fn fitted_element(
 ) -> ElementFit {
     let nl = local.len();
     let g = &fit.gradients;
-    // The displacement Gram's entry (a c, b d) and the L² Gram's (a, b).
+    // The Gram's entry (a c, b d).
     let kd = |a: usize, c: usize, b: usize, d: usize| {
         let mut v = beta * (ratio * g[(3 * a + c, 3 * b + d)] + g[(3 * a + d, 3 * b + c)]);
         if c == d {
@@ -1340,24 +1340,22 @@ fn fitted_element(
     let not_fitted: Vec<usize> = (0..ids.len())
         .filter(|&b| slot[ids[b] as usize] == usize::MAX)
         .collect();
-    let mut rhs_d = vec![0.0; 3 * nl];
-    let mut rhs_l = nalgebra::DMatrix::<f64>::zeros(nl, 6);
+    let mut rhs = [vec![0.0; 3 * nl], vec![0.0; 3 * nl], vec![0.0; 3 * nl]];
     let mut l2 = nalgebra::DMatrix::<f64>::zeros(nl, nl);
     let mut g2 = nalgebra::DMatrix::<f64>::zeros(3 * nl, 3 * nl);
     for (i, &(a, _)) in local.iter().enumerate() {
-        for c in 0..3 {
-            rhs_d[3 * i + c] = fit.values[(a, c)] + beta * fit.strain[3 * a + c];
-            rhs_l[(i, c)] = fit.values[(a, 3 + c)];
-            rhs_l[(i, 3 + c)] = fit.values[(a, 6 + c)];
-        }
-        for &b in &not_fitted {
-            let s = ids[b] as usize;
+        let fields = [&mapped.d, &mapped.v, &mapped.a];
+        for (f, rhs) in rhs.iter_mut().enumerate() {
             for c in 0..3 {
-                for d in 0..3 {
-                    rhs_d[3 * i + c] -= kd(a, c, b, d) * mapped.d[3 * s + d];
+                rhs[3 * i + c] = fit.values[(a, 3 * f + c)] + beta * fit.strain[(3 * a + c, f)];
+            }
+            for &b in &not_fitted {
+                let s = ids[b] as usize;
+                for c in 0..3 {
+                    for d in 0..3 {
+                        rhs[3 * i + c] -= kd(a, c, b, d) * fields[f][3 * s + d];
+                    }
                 }
-                rhs_l[(i, c)] -= fit.l2[(a, b)] * mapped.v[3 * s + c];
-                rhs_l[(i, 3 + c)] -= fit.l2[(a, b)] * mapped.a[3 * s + c];
             }
         }
         for (j, &(b, _)) in local.iter().enumerate() {
@@ -1374,8 +1372,7 @@ fn fitted_element(
         beta,
         l2,
         g2,
-        rhs_d,
-        rhs_l,
+        rhs,
     }
 }
 
@@ -1445,7 +1442,7 @@ impl BlockGram {
     /// Solves G x = b as [`solve_gram`] does: scaled to unit diagonal, by
     /// sparse Cholesky when its smallest squared pivot over the largest is
     /// above [`GRAM_RANK_TOL`]; else the dense [`solve_gram`] (pseudo-inverse).
-    fn solve(self, b: Vec<f64>) -> (Vec<f64>, GramSolve, f64) {
+    fn solve(self, b: Vec<Vec<f64>>) -> (Vec<Vec<f64>>, GramSolve, f64) {
         let p = &self.pattern;
         let n = p.n;
         // Column c starts with its diagonal entry.
@@ -1476,12 +1473,19 @@ impl BlockGram {
                     .fold((f64::INFINITY, 0.0f64), |(l, h), &x| (l.min(x), h.max(x)));
                 let ratio = (lo / hi).powi(2);
                 if ratio > GRAM_RANK_TOL {
-                    let mut y: Vec<f64> = b.iter().zip(&scale).map(|(x, s)| x * s).collect();
-                    chol.solve_in_place(&mut y);
-                    for (y, s) in y.iter_mut().zip(&scale) {
-                        *y *= s;
-                    }
-                    return (y, GramSolve::Cholesky, ratio);
+                    let x = b
+                        .iter()
+                        .map(|b| {
+                            let mut y: Vec<f64> =
+                                b.iter().zip(&scale).map(|(x, s)| x * s).collect();
+                            chol.solve_in_place(&mut y);
+                            for (y, s) in y.iter_mut().zip(&scale) {
+                                *y *= s;
+                            }
+                            y
+                        })
+                        .collect();
+                    return (x, GramSolve::Cholesky, ratio);
                 }
             }
         }
@@ -1494,39 +1498,25 @@ impl BlockGram {
                 dense[(c, r)] = self.values[k];
             }
         }
-        let (x, how, ratio) = solve_gram(dense, nalgebra::DMatrix::from_vec(n, 1, b), 0.0);
-        (x.as_slice().to_vec(), how, ratio)
+        let columns = b.len();
+        let b = nalgebra::DMatrix::from_fn(n, columns, |r, c| b[c][r]);
+        let (x, how, ratio) = solve_gram(dense, b);
+        let x = (0..columns)
+            .map(|c| x.column(c).iter().copied().collect())
+            .collect();
+        (x, how, ratio)
     }
 }
-
-/// Damping δ of the velocity's and acceleration's Gram (scaled to unit
-/// diagonal): solved as (G + δI) with [`DAMPING_REFINEMENTS`] refinements on
-/// G, which keeps a direction of eigenvalue λ ≫ δ exact to (δ/λ)³ and
-/// shrinks one of λ ≪ δ to about 3λ/δ of its least-squares coefficient.
-/// With a blade on a node layer (faces the front crosses lifted a snap off
-/// it: sliver cells, eigenvalues down to 1e-9) the undamped fit gave the
-/// rates of nearly dependent functions coefficients amplified by 1/λ, and
-/// the next step of a corotational Tet10 sweep inverted the slivers' groups
-/// (Newton failed at its fifth step; found through the CLI). δ = 1e-8 with
-/// two refinements still failed at step 9; 1e-7 runs.
-const RATES_DAMPING: f64 = 1e-7;
-
-/// Refinements of a damped Gram solve ([`RATES_DAMPING`]).
-const DAMPING_REFINEMENTS: usize = 2;
 
 /// Solves the symmetric positive semi-definite Gram system G x = b: scaled
 /// to unit diagonal (S G S y = S b, x = S y, S = diag(G)^-½), by Cholesky
 /// (faer's dense one, on one thread) when its smallest squared pivot over
 /// the largest is above [`GRAM_RANK_TOL`], else by the pseudo-inverse over
-/// the eigenvalues above it. With `damping` δ > 0 the Cholesky is that of
-/// the scaled G + δI, refined [`DAMPING_REFINEMENTS`] times on G (iterated
-/// Tikhonov: nearly dependent directions damped, the others kept). Also
-/// returns that ratio (smallest eigenvalue over largest for the
+/// the eigenvalues above it. Also returns that ratio (smallest eigenvalue over largest for the
 /// pseudo-inverse). A function with zero norm (zero diagonal) gets zero.
 fn solve_gram(
     mut g: nalgebra::DMatrix<f64>,
     mut b: nalgebra::DMatrix<f64>,
-    damping: f64,
 ) -> (nalgebra::DMatrix<f64>, GramSolve, f64) {
     let n = g.nrows();
     let scale: Vec<f64> = (0..n)
@@ -1561,27 +1551,9 @@ fn solve_gram(
         }
         y
     };
-    // G + δI (a copy only where δ > 0: the undamped fallback of a large
-    // displacement Gram factorises G itself).
-    let damped = (damping > 0.0).then(|| {
-        let mut d = g.clone();
-        for i in 0..n {
-            d[(i, i)] += damping;
-        }
-        d
-    });
-    if let Some((l, ratio)) = dense_cholesky(damped.as_ref().unwrap_or(&g)) {
+    if let Some((l, ratio)) = dense_cholesky(&g) {
         if ratio > GRAM_RANK_TOL {
-            let mut y = dense_llt_solve(&l, &b);
-            for _ in 0..if damping > 0.0 {
-                DAMPING_REFINEMENTS
-            } else {
-                0
-            } {
-                let r = &b - &g * &y;
-                y += dense_llt_solve(&l, &r);
-            }
-            return (unscale(y), GramSolve::Cholesky, ratio);
+            return (unscale(dense_llt_solve(&l, &b)), GramSolve::Cholesky, ratio);
         }
     }
     let eig = g.symmetric_eigen();
@@ -1810,10 +1782,9 @@ impl Sweep {
         };
         let (mut n_pseudo, mut dropped) = (0, 0);
         for p in &done {
-            let d = [pseudo(p.displacement), pseudo(p.rates)];
-            if d.iter().any(Option::is_some) {
+            if let Some(d) = pseudo(p.solve) {
                 n_pseudo += 1;
-                dropped = d.iter().flatten().fold(dropped, |m: usize, &x| m.max(x));
+                dropped = dropped.max(d);
             }
         }
         let fitted = done.iter().map(|p| p.fitted).max().unwrap_or(0);

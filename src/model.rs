@@ -1416,8 +1416,9 @@ pub struct TipFit {
     pub gradients: nalgebra::DMatrix<f64>,
     /// m × 9: ∫ φ_a u, ∫ φ_a v, ∫ φ_a a (three columns each).
     pub values: nalgebra::DMatrix<f64>,
-    /// 3m: ∫ ε(φ_a e_c) : C : ε(u) / μ = ∫ (∇u + ∇uᵀ)_c · ∇φ_a + (λ/μ) div u ∂_c φ_a at 3a + c.
-    pub strain: Vec<f64>,
+    /// 3m × 3: ∫ ε(φ_a e_c) : C : ε(w) / μ = ∫ (∇w + ∇wᵀ)_c · ∇φ_a + (λ/μ)
+    /// div w ∂_c φ_a at row 3a + c, column 0, 1, 2 for w = u, v, a.
+    pub strain: nalgebra::DMatrix<f64>,
 }
 
 /// Per element (index), its [`TipFit`].
@@ -1436,7 +1437,8 @@ pub struct OldField<'a> {
 /// What a tip element's block collects for its [`TipFit`], point by point:
 /// the old field on the element, w (u, v, a) per point (9 each, in the
 /// order of the points' shape values), and per side (as the dense groups'
-/// gradient columns) w (∇u + ∇uᵀ + (λ/μ) div u I), column-major.
+/// gradient columns) w (∇w + ∇wᵀ + (λ/μ) div w I) for w = u, v, a,
+/// column-major (27 a point).
 struct FitPoints {
     field: ElementField,
     fields: Vec<f64>,
@@ -1475,28 +1477,20 @@ impl ElementField {
         }
     }
 
-    /// u, ∇u (row c = ∇u_c), v and a at `x` on side `side`.
-    fn at(
-        &mut self,
-        x: &Point3<f64>,
-        side: i8,
-    ) -> (Vector3<f64>, Matrix3<f64>, Vector3<f64>, Vector3<f64>) {
+    /// u, v and a at `x` on side `side`, and their gradients (row c = ∇u_c).
+    fn at(&mut self, x: &Point3<f64>, side: i8) -> ([Vector3<f64>; 3], [Matrix3<f64>; 3]) {
         // The old field on the side x lies on in the old element.
         let side = self.ev.side_at(x, side);
         self.ev.eval(x, side, &mut self.vals, &mut self.grads);
-        let (mut u, mut gu, mut v, mut a) = (
-            Vector3::zeros(),
-            Matrix3::zeros(),
-            Vector3::zeros(),
-            Vector3::zeros(),
-        );
+        let mut w = [Vector3::zeros(); 3];
+        let mut gw = [Matrix3::zeros(); 3];
         for (k, (&n, g)) in self.vals.iter().zip(&self.grads).enumerate() {
-            u += self.d[k] * n;
-            gu += self.d[k] * g.transpose();
-            v += self.v[k] * n;
-            a += self.a[k] * n;
+            for (f, x) in [self.d[k], self.v[k], self.a[k]].into_iter().enumerate() {
+                w[f] += x * n;
+                gw[f] += x * g.transpose();
+            }
         }
-        (u, gu, v, a)
+        (w, gw)
     }
 }
 
@@ -1620,15 +1614,18 @@ impl Integrator<'_> {
                 shapes.eval(&bary, cell.side, &mut vals, &mut gr);
                 if let Some(fit) = fit.as_mut() {
                     // The old field's w u, w v, w a (against the values) and
-                    // w ((∇u + ∇uᵀ) + (λ/μ) div u I) (against the gradients).
-                    let (u, gu, v, a) = fit.field.at(&q.x, cell.side);
-                    fit.fields.extend((u * w).iter());
-                    fit.fields.extend((v * w).iter());
-                    fit.fields.extend((a * w).iter());
-                    let strain =
-                        (gu + gu.transpose() + Matrix3::identity() * (gu.trace() * ratio)) * w;
-                    // Column-major: entry (c, j) at 3j + c.
-                    fit.strains[(cell.side + 1) as usize].extend(strain.iter());
+                    // w ((∇u + ∇uᵀ) + (λ/μ) div u I), the same of v and a
+                    // (against the gradients).
+                    let (field, gradients) = fit.field.at(&q.x, cell.side);
+                    for f in field {
+                        fit.fields.extend((f * w).iter());
+                    }
+                    for g in gradients {
+                        let strain =
+                            (g + g.transpose() + Matrix3::identity() * (g.trace() * ratio)) * w;
+                        // Column-major: entry (c, j) at 3j + c.
+                        fit.strains[(cell.side + 1) as usize].extend(strain.iter());
+                    }
                 }
                 if !self.stiffness {
                 } else if per_point {
@@ -1694,21 +1691,26 @@ impl Integrator<'_> {
             let v = nalgebra::DMatrixView::from_slice(&mass_values, m, n);
             let f = nalgebra::DMatrixView::from_slice(&fit.fields, 9, n);
             let values = v * f.transpose();
-            // Σ_q S_q ∇φ_a(x_q) per side, from one product of the side's
-            // gradient columns C (3m × n) with its matrices (9 × n, entry
-            // (c, j) at row 3j + c): X = C Sᵀ, strain_{3a+c} = Σ_j X_{3a+j, 3j+c}.
-            let mut strain = vec![0.0; 3 * m];
+            // Σ_q S_q ∇φ_a(x_q) per side and field f, from one product of
+            // the side's gradient columns C (3m × n) with its matrices
+            // (27 × n, entry (c, j) of field f at row 9f + 3j + c): X = C Sᵀ,
+            // strain_{3a+c, f} = Σ_j X_{3a+j, 9f+3j+c}.
+            let mut strain = nalgebra::DMatrix::<f64>::zeros(3 * m, 3);
             for ((columns, weights), strains) in sides.iter().zip(&fit.strains) {
                 let n = weights.len();
                 if n == 0 {
                     continue;
                 }
                 let c = nalgebra::DMatrixView::from_slice(columns, 3 * m, n);
-                let s = nalgebra::DMatrixView::from_slice(strains, 9, n);
+                let s = nalgebra::DMatrixView::from_slice(strains, 27, n);
                 let x = c * s.transpose();
-                for (a, out) in strain.chunks_exact_mut(3).enumerate() {
-                    for (ci, o) in out.iter_mut().enumerate() {
-                        *o += (0..3).map(|j| x[(3 * a + j, 3 * j + ci)]).sum::<f64>();
+                for f in 0..3 {
+                    for a in 0..m {
+                        for ci in 0..3 {
+                            strain[(3 * a + ci, f)] += (0..3)
+                                .map(|j| x[(3 * a + j, 9 * f + 3 * j + ci)])
+                                .sum::<f64>();
+                        }
                     }
                 }
             }
