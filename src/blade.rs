@@ -1019,7 +1019,9 @@ const GRADIENT_WEIGHT: f64 = 0.25;
 /// (β = [`GRADIENT_WEIGHT`] h² per element, e = u_new − u_old, v_new −
 /// v_old or a_new − a_old; one system for the three components, which the
 /// strain couples): G a_F = the same form of the shape functions against
-/// r = u_old − Σ_{b∉F} φ_b a_b. The rates take the strain term too: with
+/// r = u_old − Σ_{b∉F} φ_b a_b. One projection P for the three fields
+/// keeps the state consistent: P v is the rate of P u, P a that of P v.
+/// The rates take the strain term too: with
 /// the L² misfit alone (and a Tikhonov damping of 1e-7 against nearly
 /// dependent functions) the velocity of a Heaviside function whose other
 /// side is a corner of 1e-6 of its elements, where it and its neighbours'
