@@ -277,23 +277,37 @@ pub enum DynamicError {
     NoMass,
     #[error("the state became non-finite at step {0}")]
     NotFinite(usize),
-    #[error("Newton did not converge at step {step} (t = {time:.6} s): relative residual {residual:e}{}", inverted_hint(*inverted))]
+    #[error("Newton did not converge at step {step} (t = {time:.6} s): relative residual {residual:e}{}", inverted_hint(*inverted, *inverted_volume))]
     NoConvergence {
         step: usize,
         time: f64,
         residual: f64,
         /// Integration groups with det F ≤ 0 at the last iterate.
         inverted: usize,
+        /// Their reference volume over the body's
+        /// ([`crate::assembly::inverted_fraction`]): slivers of cut elements
+        /// or a body that folds.
+        inverted_volume: f64,
     },
 }
 
-/// What a failed step's message adds where elements inverted.
-fn inverted_hint(inverted: usize) -> String {
+/// What a failed step's message adds where elements inverted: how many
+/// groups, and how much of the body they are (a few slivers of cut
+/// elements, 1e-5 of it, or a body that folds, a few per cent).
+fn inverted_hint(inverted: usize, volume: f64) -> String {
     match inverted {
         0 => String::new(),
-        n => format!(
-            "; {n} integration groups inverted (det F <= 0): a smaller dt, a ramp, stiffness damping (analysis.rayleigh.stiffness) or a stiffer material may let the mesh follow"
-        ),
+        n => {
+            let percent = 100.0 * volume;
+            let percent = if percent >= 0.01 {
+                format!("{percent:.2}")
+            } else {
+                format!("{percent:.1e}")
+            };
+            format!(
+                "; {n} integration groups inverted (det F <= 0; {percent} % of the body's volume at the last iterate): a smaller dt, a ramp, stiffness damping (analysis.rayleigh.stiffness) or a stiffer material may let the mesh follow"
+            )
+        }
     }
 }
 
@@ -1405,6 +1419,7 @@ impl<'m> Newmark<'m> {
                         time: t_new,
                         residual,
                         inverted: crate::assembly::inverted_groups(model, &d),
+                        inverted_volume: crate::assembly::inverted_fraction(model, &d),
                     });
                 }
                 break;

@@ -931,7 +931,8 @@ fn a_load_step_newton_cannot_finish_is_halved_until_it_can() {
 fn a_dynamic_step_that_fails_on_inverted_elements_says_so() {
     // A column three times too soft to carry its weight collapses onto its
     // clamp: elements invert and Newton stalls. The error names the step,
-    // its time and how many groups inverted.
+    // its time, how many groups inverted and how much of the body they are
+    // (whole elements here: far more than slivers of cut elements).
     let text = r#"name = "collapse"
 description = "a soft column collapsing under its weight"
 [body]
@@ -964,4 +965,11 @@ steps = 100
         "{message}"
     );
     assert!(message.contains("integration groups inverted"), "{message}");
+    let percent: f64 = message
+        .split("det F <= 0; ")
+        .nth(1)
+        .and_then(|rest| rest.split(" % of the body's volume").next())
+        .and_then(|p| p.parse().ok())
+        .unwrap_or_else(|| panic!("no share of the body's volume: {message}"));
+    assert!((1.0..=100.0).contains(&percent), "{message}");
 }
