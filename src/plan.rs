@@ -232,6 +232,21 @@ impl Plan {
             ),
         }
         if let (true, Some(o)) = (progressive, dynamic) {
+            // A blade's tip front (the default) moves inside its elements:
+            // its DOFs change meaning at each event.
+            let tip_blade = scene.cuts.iter().any(|c| {
+                matches!(c.geometry, crate::scene::CutGeometry::Blade { .. })
+                    && c.front != Some(crate::scene::FrontMode::Extend)
+            });
+            add(
+                "cut events: the state carried over",
+                true,
+                if tip_blade {
+                    "new shifted DOFs start at zero (the field, its rates and both energies unchanged); where a tip front moved, d, v and a projected together by least squares in the energy norm (|e|^2 + (h^2/4) e:C:e/mu over the elements whose field changed); the energy change at each event is reported"
+                } else {
+                    "new shifted DOFs start at zero: the field, its rates and both energies unchanged (extended fronts: no projection)"
+                },
+            );
             match (corot, o.event_solve) {
                 (false, EventSolve::Bordered { max_border }) => add(
                     "cut events: bordered solve on the last factor",

@@ -356,6 +356,13 @@ fn the_plan_shows_the_options_the_run_uses() {
             ),
         )
     };
+    // A blade half-way through the beam during the two steps.
+    let blade = |front: &str| {
+        dynamic("").replace(
+            "[[fix]]",
+            &format!("[[cut]]\nblade = [[-0.01, -0.01, 0.1], [-0.01, 0.07, 0.1]]\ntravel = [0.025, 0.0, 0.0]\nstart = 0.0\nend = 0.02\n{front}[[fix]]"),
+        )
+    };
     for (text, has, lacks) in [
         (
             dynamic("mass = \"consistent\""),
@@ -398,6 +405,17 @@ fn the_plan_shows_the_options_the_run_uses() {
             "[skip] numeric factorisation every iteration (constant matrix",
             "[run ] mass",
         ),
+        (
+            blade(""),
+            "[run ] cut events: the state carried over (new shifted DOFs start at zero (the field, its rates and both energies unchanged); where a tip front moved, d, v and a projected together",
+            "no projection",
+        ),
+        (
+            blade("front = \"extend\"\n"),
+            "[run ] cut events: the state carried over (new shifted DOFs start at zero: the field, its rates and both energies unchanged (extended fronts: no projection)",
+            "projected together",
+        ),
+        (dynamic(""), "[run ] mass", "cut events"),
     ] {
         let (out, _dir) = run_output(&text);
         let stdout = String::from_utf8_lossy(&out.stdout);
