@@ -3285,16 +3285,20 @@ impl Model {
         let keep_residual = !self.lump_residual.is_empty();
         let mut lump_residual =
             Vec::with_capacity(if keep_residual { mesh.n_elements() } else { 0 });
+        // A kept element's shape ids on the new numbering (one buffer).
+        let mut ids: Vec<u32> = Vec::new();
         for e in 0..mesh.n_elements() {
             let el = &self.elements[e];
             if kept[e] {
                 if keep_residual {
                     lump_residual.push(self.lump_residual[e]);
                 }
-                let ids: Vec<u32> = self.shape_ids[el.shapes.clone()]
-                    .iter()
-                    .map(|&s| map[s as usize])
-                    .collect();
+                ids.clear();
+                ids.extend(
+                    self.shape_ids[el.shapes.clone()]
+                        .iter()
+                        .map(|&s| map[s as usize]),
+                );
                 let groups = &self.groups[el.groups.clone()];
                 let m = el.shapes.len();
                 let (g0, g1) = match (groups.first(), groups.last()) {
