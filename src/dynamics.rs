@@ -297,17 +297,20 @@ pub enum DynamicError {
 fn inverted_hint(inverted: usize, volume: f64) -> String {
     match inverted {
         0 => String::new(),
-        n => {
-            let percent = 100.0 * volume;
-            let percent = if percent >= 0.01 {
-                format!("{percent:.2}")
-            } else {
-                format!("{percent:.1e}")
-            };
-            format!(
-                "; {n} integration groups inverted (det F <= 0; {percent} % of the body's volume at the last iterate): a smaller dt, a ramp, stiffness damping (analysis.rayleigh.stiffness) or a stiffer material may let the mesh follow"
-            )
-        }
+        n => format!(
+            "; {n} integration groups inverted (det F <= 0; {} % of the body's volume at the last iterate): a smaller dt, a ramp, stiffness damping (analysis.rayleigh.stiffness) or a stiffer material may let the mesh follow",
+            percent(volume)
+        ),
+    }
+}
+
+/// A fraction as per cent: two decimals from 0.01 %, else in e-notation.
+pub(crate) fn percent(fraction: f64) -> String {
+    let percent = 100.0 * fraction;
+    if percent >= 0.01 {
+        format!("{percent:.2}")
+    } else {
+        format!("{percent:.1e}")
     }
 }
 

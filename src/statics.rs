@@ -44,7 +44,7 @@ impl Default for StaticOptions {
 pub enum StaticError {
     #[error(transparent)]
     Solve(#[from] SolveError),
-    #[error("Newton did not converge at load fraction {lambda}: relative residual {residual:e} after {iterations} iterations ({cutbacks} load steps halved before)")]
+    #[error("Newton did not converge at load fraction {lambda}: relative residual {residual:e} after {iterations} iterations ({cutbacks} load steps halved before){}", inverted_hint(*inverted, *inverted_volume))]
     NoConvergence {
         /// The load fraction λ the failed load step aimed at.
         lambda: f64,
@@ -52,9 +52,25 @@ pub enum StaticError {
         cutbacks: usize,
         iterations: usize,
         residual: f64,
+        /// Integration groups with det F ≤ 0 at the last iterate, and their
+        /// share of the body's volume.
+        inverted: usize,
+        inverted_volume: f64,
     },
     #[error("the solution is not finite (NaN or inf)")]
     NotFinite,
+}
+
+/// What a failed load step's message adds where elements inverted: how
+/// many groups and how much of the body (as [`crate::dynamics`] says it).
+fn inverted_hint(inverted: usize, volume: f64) -> String {
+    match inverted {
+        0 => String::new(),
+        n => format!(
+            "; {n} integration groups inverted (det F <= 0; {} % of the body's volume at the last iterate): more load steps (analysis.load_steps) or a stiffer material may let the mesh follow",
+            crate::dynamics::percent(volume)
+        ),
+    }
 }
 
 /// Result of a static solve.
@@ -174,6 +190,8 @@ pub fn solve_static_along(
                         cutbacks,
                         iterations: it,
                         residual,
+                        inverted: crate::assembly::inverted_groups(model, &d),
+                        inverted_volume: crate::assembly::inverted_fraction(model, &d),
                     });
                 }
                 if want_tangent {
