@@ -927,13 +927,13 @@ fn a_load_step_newton_cannot_finish_is_halved_until_it_can() {
     );
 }
 
-#[test]
-fn a_load_step_that_fails_on_inverted_elements_says_so() {
-    // The column of the next test, statically under 100 m/s²: elements
-    // invert and Newton stalls after its load steps are halved. The error
-    // names the load fraction, how many groups inverted and how much of
-    // the body they are, and the remedies of a static scene.
-    let text = r#"name = "crushed"
+/// A soft column (E = 1 kPa) clamped at its base under gravity g along
+/// it, solved as `analysis` says: its failure message (the file named
+/// `name`.toml), and the share of the body's volume the message gives as
+/// inverted (in per cent).
+fn soft_column_failure(name: &str, g: f64, analysis: &str) -> (String, f64) {
+    let text = format!(
+        r#"name = "{name}"
 [body]
 box = [[0,0,0], [0.04, 0.04, 0.1]]
 levels = [[2, 2, 5]]
@@ -946,74 +946,58 @@ density = 1000.0
 min = [-inf, -inf, 0.0]
 max = [inf, inf, 0.0]
 [gravity]
-acceleration = [0.0, 0.0, -100.0]
+acceleration = [0.0, 0.0, {g:?}]
 [analysis]
-type = "static"
 formulation = "corotational"
-"#;
-    let scene = xfem_cut::scene::Scene::parse(text, std::path::Path::new("crushed.toml")).unwrap();
+{analysis}
+"#
+    );
+    let file = format!("{name}.toml");
+    let scene = xfem_cut::scene::Scene::parse(&text, std::path::Path::new(&file)).unwrap();
     let message = xfem_cut::run::solve_scene(&scene, 0, None, false)
         .err()
-        .expect("the column is crushed")
+        .expect("the column gives way")
         .to_string();
     println!("{message}");
-    assert!(
-        message.starts_with("crushed.toml: Newton did not converge at load fraction"),
-        "{message}"
-    );
     let percent: f64 = message
         .split("det F <= 0; ")
         .nth(1)
         .and_then(|rest| rest.split(" % of the body's volume").next())
         .and_then(|p| p.parse().ok())
         .unwrap_or_else(|| panic!("no share of the body's volume: {message}"));
+    (message, percent)
+}
+
+#[test]
+fn a_load_step_that_fails_on_inverted_elements_says_so() {
+    // The column, statically under 100 m/s²: elements invert and Newton
+    // stalls after its load steps are halved. The error names the load
+    // fraction, how many groups inverted and how much of the body they
+    // are, and the remedies of a static scene.
+    let (message, percent) = soft_column_failure("crushed", -100.0, "type = \"static\"");
+    assert!(
+        message.starts_with("crushed.toml: Newton did not converge at load fraction"),
+        "{message}"
+    );
     assert!((1.0..=100.0).contains(&percent), "{message}");
     assert!(message.contains("analysis.load_steps"), "{message}");
 }
 
 #[test]
 fn a_dynamic_step_that_fails_on_inverted_elements_says_so() {
-    // A column three times too soft to carry its weight collapses onto its
-    // clamp: elements invert and Newton stalls. The error names the step,
-    // its time, how many groups inverted and how much of the body they are
-    // (whole elements here: far more than slivers of cut elements).
-    let text = r#"name = "collapse"
-description = "a soft column collapsing under its weight"
-[body]
-box = [[0,0,0], [0.04, 0.04, 0.1]]
-levels = [[2, 2, 5]]
-element = "tet4"
-[material]
-young = 1000.0
-poisson = 0.3
-density = 1000.0
-[[fix]]
-min = [-inf, -inf, 0.0]
-max = [inf, inf, 0.0]
-displacement = [0.0, 0.0, 0.0]
-[gravity]
-acceleration = [0.0, 0.0, -30.0]
-[analysis]
-type = "dynamic"
-formulation = "corotational"
-dt = 0.01
-steps = 100
-"#;
-    let scene = xfem_cut::scene::Scene::parse(text, std::path::Path::new("collapse.toml")).unwrap();
-    let err = xfem_cut::run::solve_scene(&scene, 0, None, false)
-        .err()
-        .expect("the column collapses");
-    let message = err.to_string();
+    // The column three times too soft to carry its weight collapses onto
+    // its clamp: elements invert and Newton stalls. The error names the
+    // step, its time, how many groups inverted and how much of the body
+    // they are (whole elements here: far more than slivers of cut elements).
+    let (message, percent) = soft_column_failure(
+        "collapse",
+        -30.0,
+        "type = \"dynamic\"\ndt = 0.01\nsteps = 100",
+    );
     assert!(
         message.starts_with("collapse.toml: Newton did not converge at step"),
         "{message}"
     );
     assert!(message.contains("integration groups inverted"), "{message}");
-    let percent: f64 = message
-        .split("det F <= 0; ")
-        .nth(1)
-        .and_then(|rest| rest.split(" % of the body's volume").next())
-        .and_then(|p| p.parse().ok())
-        .unwrap_or_else(|| panic!("no share of the body's volume: {message}"));
     assert!((1.0..=100.0).contains(&percent), "{message}");
 }
