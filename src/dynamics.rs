@@ -277,7 +277,7 @@ pub enum DynamicError {
     NoMass,
     #[error("the state became non-finite at step {0}")]
     NotFinite(usize),
-    #[error("Newton did not converge at step {step} (t = {time:.6} s): relative residual {residual:e}{}", inverted_hint(*inverted, *inverted_volume))]
+    #[error("Newton did not converge at step {step} (t = {time:.6} s): relative residual {residual:e}{}", inverted_hint(*inverted, *inverted_volume, STEP_REMEDIES))]
     NoConvergence {
         step: usize,
         time: f64,
@@ -291,27 +291,27 @@ pub enum DynamicError {
     },
 }
 
-/// What a failed step's message adds where elements inverted: how many
-/// groups, and how much of the body they are (a few slivers of cut
-/// elements, 1e-5 of it, or a body that folds, a few per cent).
-fn inverted_hint(inverted: usize, volume: f64) -> String {
-    match inverted {
-        0 => String::new(),
-        n => format!(
-            "; {n} integration groups inverted (det F <= 0; {} % of the body's volume at the last iterate): a smaller dt, a ramp, stiffness damping (analysis.rayleigh.stiffness) or a stiffer material may let the mesh follow",
-            percent(volume)
-        ),
-    }
-}
+/// The remedies a failed time step's message names where groups inverted.
+const STEP_REMEDIES: &str =
+    "a smaller dt, a ramp, stiffness damping (analysis.rayleigh.stiffness) or a stiffer material";
 
-/// A fraction as per cent: two decimals from 0.01 %, else in e-notation.
-pub(crate) fn percent(fraction: f64) -> String {
-    let percent = 100.0 * fraction;
-    if percent >= 0.01 {
+/// What a failed step's (or load step's) message adds where elements
+/// inverted: how many groups, how much of the body they are (a few slivers
+/// of cut elements, 1e-5 of it, or a body that folds, a few per cent), and
+/// the `remedies` of the analysis.
+pub(crate) fn inverted_hint(inverted: usize, volume: f64, remedies: &str) -> String {
+    if inverted == 0 {
+        return String::new();
+    }
+    let percent = 100.0 * volume;
+    let percent = if percent >= 0.01 {
         format!("{percent:.2}")
     } else {
         format!("{percent:.1e}")
-    }
+    };
+    format!(
+        "; {inverted} integration groups inverted (det F <= 0; {percent} % of the body's volume at the last iterate): {remedies} may let the mesh follow"
+    )
 }
 
 /// The state of the body at one time.

@@ -44,7 +44,7 @@ impl Default for StaticOptions {
 pub enum StaticError {
     #[error(transparent)]
     Solve(#[from] SolveError),
-    #[error("Newton did not converge at load fraction {lambda}: relative residual {residual:e} after {iterations} iterations ({cutbacks} load steps halved before){}", inverted_hint(*inverted, *inverted_volume))]
+    #[error("Newton did not converge at load fraction {lambda}: relative residual {residual:e} after {iterations} iterations ({cutbacks} load steps halved before){}", crate::dynamics::inverted_hint(*inverted, *inverted_volume, "more load steps (analysis.load_steps) or a stiffer material"))]
     NoConvergence {
         /// The load fraction λ the failed load step aimed at.
         lambda: f64,
@@ -59,18 +59,6 @@ pub enum StaticError {
     },
     #[error("the solution is not finite (NaN or inf)")]
     NotFinite,
-}
-
-/// What a failed load step's message adds where elements inverted: how
-/// many groups and how much of the body (as [`crate::dynamics`] says it).
-fn inverted_hint(inverted: usize, volume: f64) -> String {
-    match inverted {
-        0 => String::new(),
-        n => format!(
-            "; {n} integration groups inverted (det F <= 0; {} % of the body's volume at the last iterate): more load steps (analysis.load_steps) or a stiffer material may let the mesh follow",
-            crate::dynamics::percent(volume)
-        ),
-    }
 }
 
 /// Result of a static solve.
