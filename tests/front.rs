@@ -1798,3 +1798,47 @@ fn ramp_blending_keeps_the_rates_of_issue_11_on_a_jittered_mesh_tet4() {
     );
     assert!(runs[1].l2 * 1.5 < plain.l2, "{} {}", runs[1].l2, plain.l2);
 }
+
+/// The seed's beam (1080 Tet4) with its cut shortened to x = 0.0137, the
+/// front inside elements and tip-enriched (the `tip` group of
+/// benches/cut.rs): `Cholesky::fill_reducing` keeps the sparsest of its
+/// candidates, and here that is nested dissection on the equation graph,
+/// not on the shape graph (a tip node's twelve branch DOFs, four blocks
+/// there, fill 19 % more: 168183 entries in L against 141588).
+#[test]
+fn the_fill_reducing_ordering_keeps_its_sparsest_candidate_with_a_tip_front() {
+    use xfem_cut::assembly::equation_shapes;
+    use xfem_cut::solve::{Ordering, Parallelism};
+    use xfem_cut::study::fixtures::{beam_mesh, seed_beam};
+    let mesh = beam_mesh([3, 6, 10], false);
+    let patch = PlanarPatch {
+        origin: Point3::new(0.0, 0.0, 0.1),
+        u: Vector3::new(0.0137, 0.0, 0.0),
+        v: Vector3::new(0.0, 0.06, 0.0),
+    };
+    let cut = setup_cut(
+        &mesh,
+        &[CutInput::tip(&patch, xfem_cut::cut::DEFAULT_SNAP, None)],
+    )
+    .unwrap();
+    assert!(cut.n_tip() > 0);
+    let m = seed_beam(mesh, Formulation::Corotational, Some(cut)).unwrap();
+    let shapes = equation_shapes(&m);
+    let seq = Parallelism::SEQUENTIAL;
+    let chosen = Cholesky::fill_reducing(&m.pattern, Some(&shapes), seq)
+        .unwrap()
+        .factor_nnz();
+    let nnz = |ordering: Ordering| {
+        Cholesky::with(&m.pattern, &ordering, seq)
+            .unwrap()
+            .factor_nnz()
+    };
+    let on_shapes = nnz(Ordering::nested_dissection(&m.pattern, Some(&shapes)).unwrap());
+    let on_equations = nnz(Ordering::nested_dissection(&m.pattern, None).unwrap());
+    let amd = nnz(Ordering::Amd);
+    println!(
+        "nnz(L): chosen {chosen}, ND shapes {on_shapes}, ND equations {on_equations}, AMD {amd}"
+    );
+    assert_eq!(chosen, on_shapes.min(on_equations).min(amd));
+    assert!(chosen < on_shapes, "{chosen} {on_shapes}");
+}
