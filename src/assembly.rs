@@ -39,6 +39,8 @@ struct Scratch {
     local_forces: Vec<f64>,
     p: Vec<Matrix3<f64>>,
     t: Vec<Matrix3<f64>>,
+    /// A dense group's exact tangent: X and N = K X, 3m rows each.
+    rows: Vec<[f64; 3]>,
 }
 
 impl Scratch {
@@ -51,6 +53,7 @@ impl Scratch {
             local_forces: vec![0.0; 3 * m],
             p: vec![Matrix3::zeros(); m],
             t: vec![Matrix3::zeros(); m],
+            rows: vec![[0.0; 3]; 6 * m],
         }
     }
 }
@@ -469,6 +472,7 @@ impl Pass<'_> {
                                 h,
                                 &mut scratch.p[..m],
                                 &mut scratch.t[..m],
+                                &mut scratch.rows[..6 * m],
                                 |a, b, block| scattered(k, 1.0, a, b, block),
                             );
                         }

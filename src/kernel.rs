@@ -174,9 +174,27 @@ pub fn group_rotation(
 /// seed's R K (Rᵀx − x₀), is not a gradient when the points' RᵀF_q differ:
 /// its Jacobian has an antisymmetric part of the order of the stress.)
 pub struct DenseKernel<'a> {
-    /// (3m)² row-major, symmetric.
+    /// The symmetric (3m)² K by its lower triangle, rows packed
+    /// ([`packed_len`] values: row i's columns 0..=i from i(i+1)/2).
     pub stiffness: &'a [f64],
     pub rotation: Matrix3<f64>,
+}
+
+/// Values of a symmetric n × n matrix held by its lower triangle, rows
+/// packed ([`DenseKernel::stiffness`]). Half the (3m)² of the full matrix:
+/// a dense tip group's K u reads its K from memory at every force pass
+/// (60 × 60 a Tet4 tip element, 6.7 MB over the 234 groups of the 1k-Tet4
+/// tip scene), so halving it halves that pass.
+pub fn packed_len(n: usize) -> usize {
+    n * (n + 1) / 2
+}
+
+/// Position of entry (r, c) of a symmetric matrix in its packed lower
+/// triangle (either order).
+#[inline(always)]
+pub fn packed_index(r: usize, c: usize) -> usize {
+    let (r, c) = if r >= c { (r, c) } else { (c, r) };
+    r * (r + 1) / 2 + c
 }
 
 /// The rotation derivative of a dense group at F̄: Z⁻¹, S, and per
@@ -218,15 +236,22 @@ impl DenseKernel<'_> {
         }
     }
 
-    /// h = K u; returns the energy ½ u·h.
+    /// h = K u; returns the energy ½ u·h. One pass over the packed lower
+    /// triangle: row i's entries left of the diagonal give h_i their dot
+    /// with u and, as the upper triangle's column i, add u_i times
+    /// themselves to h_0..h_{i−1}.
     pub fn local_forces(&self, u: &[f64], h: &mut [f64]) -> f64 {
         let n = u.len();
-        let mut energy = 0.0;
-        for (i, hi) in h.iter_mut().enumerate().take(n) {
-            *hi = dot(&self.stiffness[i * n..(i + 1) * n], u);
-            energy += 0.5 * u[i] * *hi;
+        let h = &mut h[..n];
+        h.fill(0.0);
+        let mut start = 0;
+        for i in 0..n {
+            let row = &self.stiffness[start..start + i];
+            let (left, rest) = h.split_at_mut(i);
+            rest[0] += dot_axpy(row, &u[..i], u[i], left) + self.stiffness[start + i] * u[i];
+            start += i + 1;
         }
-        energy
+        0.5 * dot(u, h)
     }
 
     /// Z⁻¹ and S at F̄ `f`, or `None` where Z is singular (a degenerate
@@ -272,18 +297,25 @@ impl DenseKernel<'_> {
         }
     }
 
-    /// Block (a, b) of the local stiffness.
+    /// Block (a, b) of the local stiffness, b ≤ a (off the diagonal, each
+    /// of its rows three values of one packed row).
     #[inline(always)]
-    fn block(&self, n: usize, a: usize, b: usize) -> Matrix3<f64> {
-        Matrix3::from_fn(|i, j| self.stiffness[(3 * a + i) * n + 3 * b + j])
+    fn block(&self, a: usize, b: usize) -> Matrix3<f64> {
+        if a == b {
+            return Matrix3::from_fn(|i, j| self.stiffness[packed_index(3 * a + i, 3 * b + j)]);
+        }
+        Matrix3::from_fn(|i, j| {
+            let r = 3 * a + i;
+            self.stiffness[r * (r + 1) / 2 + 3 * b + j]
+        })
     }
 
     /// The tangent R K Rᵀ block by block, for b ≤ a.
     pub fn tangent_blocks(&self, m: usize, mut add: impl FnMut(usize, usize, &Matrix3<f64>)) {
-        let (r, n) = (self.rotation, 3 * m);
+        let r = self.rotation;
         for a in 0..m {
             for b in 0..=a {
-                add(a, b, &(r * self.block(n, a, b) * r.transpose()));
+                add(a, b, &(r * self.block(a, b) * r.transpose()));
             }
         }
     }
@@ -316,11 +348,12 @@ impl DenseKernel<'_> {
         h: &[f64],
         p: &mut [Matrix3<f64>],
         t: &mut [Matrix3<f64>],
+        rows: &mut [[f64; 3]],
         add: impl FnMut(usize, usize, &Matrix3<f64>),
     ) {
         pulp::Arch::new().dispatch(
             #[inline(always)]
-            || self.exact_tangent_blocks_here(rd, grads, u, y, h, p, t, add),
+            || self.exact_tangent_blocks_here(rd, grads, u, y, h, p, t, rows, add),
         )
     }
 
@@ -335,20 +368,45 @@ impl DenseKernel<'_> {
         h: &[f64],
         p: &mut [Matrix3<f64>],
         t: &mut [Matrix3<f64>],
+        rows: &mut [[f64; 3]],
         mut add: impl FnMut(usize, usize, &Matrix3<f64>),
     ) {
         // In the group's frame: H_ab = R L_ab Rᵀ with L_ab = K_ab + Q_a T̂_b
         // + T̂_aᵀ (Q_bᵀ − A T̂_b) + M_ab, T_b = T̂_b Rᵀ (T̂_b = Z⁻¹ [ḡ_b]×), and
         // M_ab e_l = D_ab R e_l (ω_bl = T̂_b e_l, dS = sym(−[ω_bl]× S + e_l ḡ_bᵀ)).
         let m = grads.len();
-        let (r, n) = (self.rotation, 3 * m);
+        let r = self.rotation;
         let tau = DenseKernel::moment(u, h);
         let mut a_mat = Matrix3::zeros();
-        for a in 0..m {
-            let mut na = Matrix3::zeros();
-            for c in 0..m {
-                na += self.block(n, a, c) * cross3(&u[3 * c..3 * c + 3]);
+        // N = K X, X's rows 3c..3c+2 those of [u_c]×: one pass over the
+        // packed lower triangle (entry (i, j), j < i, adds K_ij X_j to N_i
+        // and K_ij X_i to N_j).
+        let n = 3 * m;
+        let (x, nk) = rows[..2 * n].split_at_mut(n);
+        for (c, uc) in u.chunks_exact(3).enumerate() {
+            x[3 * c] = [0.0, -uc[2], uc[1]];
+            x[3 * c + 1] = [uc[2], 0.0, -uc[0]];
+            x[3 * c + 2] = [-uc[1], uc[0], 0.0];
+        }
+        nk.fill([0.0; 3]);
+        let mut start = 0;
+        for i in 0..n {
+            let (row, xi) = (&self.stiffness[start..start + i], x[i]);
+            let kii = self.stiffness[start + i];
+            let mut acc = [kii * xi[0], kii * xi[1], kii * xi[2]];
+            for ((&kij, xj), nj) in row.iter().zip(x.iter()).zip(nk.iter_mut()) {
+                for l in 0..3 {
+                    acc[l] += kij * xj[l];
+                    nj[l] += kij * xi[l];
+                }
             }
+            for l in 0..3 {
+                nk[i][l] += acc[l];
+            }
+            start += i + 1;
+        }
+        for a in 0..m {
+            let na = Matrix3::from_fn(|i, l| nk[3 * a + i][l]);
             let ha = cross3(&h[3 * a..3 * a + 3]);
             a_mat += cross3(&u[3 * a..3 * a + 3]) * na - ha * cross3(&y[3 * a..3 * a + 3]);
             p[a] = na - ha;
@@ -371,7 +429,7 @@ impl DenseKernel<'_> {
                 omega[l] = w;
             }
             for a in b..m {
-                let mut local = self.block(n, a, b) + p[a] * t[b] + t[a].transpose() * u_b;
+                let mut local = self.block(a, b) + p[a] * t[b] + t[a].transpose() * u_b;
                 let gv2 = grads[a].cross(&v2);
                 for l in 0..3 {
                     let col = grads[a].cross(&v1[l]) + omega[l].cross(&gv2);
@@ -383,6 +441,27 @@ impl DenseKernel<'_> {
             }
         }
     }
+}
+
+/// Σ_j k_j u_j, with y_j += k_j x on the way (four running sums, as [`dot`]).
+#[inline(always)]
+fn dot_axpy(k: &[f64], u: &[f64], x: f64, y: &mut [f64]) -> f64 {
+    let (k4, u4) = (k.chunks_exact(4), u.chunks_exact(4));
+    let (kt, ut) = (k4.remainder(), u4.remainder());
+    let mut y4 = y.chunks_exact_mut(4);
+    let mut s = [0.0; 4];
+    for ((kc, uc), yc) in k4.zip(u4).zip(&mut y4) {
+        for l in 0..4 {
+            s[l] += kc[l] * uc[l];
+            yc[l] += kc[l] * x;
+        }
+    }
+    let mut tail = 0.0;
+    for ((kv, uv), yv) in kt.iter().zip(ut).zip(y4.into_remainder()) {
+        tail += kv * uv;
+        *yv += kv * x;
+    }
+    (s[0] + s[1]) + (s[2] + s[3]) + tail
 }
 
 /// a · b with four running sums, so the compiler can keep them in one SIMD

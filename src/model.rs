@@ -222,13 +222,14 @@ impl Model {
         &self.grads[start..start + m]
     }
 
-    /// The local stiffness of dense group `g` ((3m)² row-major), if it is one.
+    /// The local stiffness of dense group `g` (the (3m)² symmetric K by its
+    /// lower triangle, rows packed: [`crate::kernel::packed_len`]), if it is one.
     pub fn group_stiffness(&self, g: usize) -> Option<&[f64]> {
         let group = self.groups[g];
         group.is_dense().then(|| {
             let m = self.elements[self.group_element[g] as usize].shapes.len();
             let start = group.stiffness as usize;
-            &self.stiffness[start..start + 9 * m * m]
+            &self.stiffness[start..start + crate::kernel::packed_len(3 * m)]
         })
     }
 
@@ -1780,21 +1781,28 @@ impl Integrator<'_> {
             let s = gw.fixed_rows::<3>(3 * f).column_sum();
             block.grads.push(if total != 0.0 { s / total } else { s });
         }
+        // K's lower triangle, rows packed (`DenseKernel::stiffness`).
         let stiffness = block.stiffness.len() as u32;
-        block.stiffness.resize(block.stiffness.len() + n * n, 0.0);
+        block
+            .stiffness
+            .resize(block.stiffness.len() + crate::kernel::packed_len(n), 0.0);
         let k = &mut block.stiffness[stiffness as usize..];
         let (lambda, mu) = (self.lame.lambda, self.lame.mu);
         for p in 0..m {
-            for q in 0..m {
+            for q in 0..=p {
                 let ab = a.fixed_view::<3, 3>(3 * p, 3 * q);
                 let trace = ab.trace();
                 for i in 0..3 {
                     for j in 0..3 {
+                        let (r, c) = (3 * p + i, 3 * q + j);
+                        if c > r {
+                            continue;
+                        }
                         let mut v = lambda * ab[(i, j)] + mu * ab[(j, i)];
                         if i == j {
                             v += mu * trace;
                         }
-                        k[(3 * p + i) * n + 3 * q + j] = v;
+                        k[crate::kernel::packed_index(r, c)] = v;
                     }
                 }
             }
@@ -3307,7 +3315,10 @@ impl Model {
                 };
                 let dense = || groups.iter().filter(|g| g.is_dense());
                 let (k0, k1) = match (dense().next(), dense().next_back()) {
-                    (Some(f), Some(l)) => (f.stiffness as usize, l.stiffness as usize + 9 * m * m),
+                    (Some(f), Some(l)) => (
+                        f.stiffness as usize,
+                        l.stiffness as usize + crate::kernel::packed_len(3 * m),
+                    ),
                     _ => (0, 0),
                 };
                 flat.push(
