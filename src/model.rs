@@ -1000,8 +1000,8 @@ pub const SMALL_SIDE: f64 = 1e-3;
 pub const SMALL_CUT_SIDE: f64 = 1e-4;
 
 /// Moves the points of each side of a tip element smaller than
-/// [`SMALL_SIDE`] of the element's volume into its largest side (columns,
-/// weights and the fit's strains alike), so they share its dense group and
+/// [`SMALL_SIDE`] of the element's volume into its largest side (columns
+/// and weights), so they share its dense group and
 /// rotation. A side that small (a corner or sliver a lifted face or the
 /// snap leaves, down to 1e-12 of the element) holds DOFs that little else
 /// constrains; with a rotation of its own it inverted and made the exact
@@ -1010,11 +1010,7 @@ pub const SMALL_CUT_SIDE: f64 = 1e-4;
 /// quadratic in them; the cost is a stiffness of that fraction of the
 /// element against the two sides' relative rotation (none in linear runs,
 /// whose groups do not rotate).
-fn merge_small_sides(
-    sides: &mut [(Vec<f64>, Vec<f64>); 3],
-    mut fit: Option<&mut FitPoints>,
-    volume: f64,
-) {
+fn merge_small_sides(sides: &mut [(Vec<f64>, Vec<f64>); 3], volume: f64) {
     let totals = sides.each_ref().map(|(_, w)| w.iter().sum::<f64>().abs());
     let Some(largest) = (0..3).max_by(|&a, &b| totals[a].total_cmp(&totals[b])) else {
         return;
@@ -1027,10 +1023,6 @@ fn merge_small_sides(
         let (columns, weights) = std::mem::take(&mut sides[s]);
         sides[largest].0.extend(columns);
         sides[largest].1.extend(weights);
-        if let Some(fit) = fit.as_deref_mut() {
-            let strains = std::mem::take(&mut fit.strains[s]);
-            fit.strains[largest].extend(strains);
-        }
     }
 }
 
@@ -1437,13 +1429,13 @@ pub struct OldField<'a> {
 
 /// What a tip element's block collects for its [`TipFit`], point by point:
 /// the old field on the element, w (u, v, a) per point (9 each, in the
-/// order of the points' shape values), and per side (as the dense groups'
-/// gradient columns) w (∇w + ∇wᵀ + (λ/μ) div w I) for w = u, v, a,
-/// column-major (27 a point).
+/// order of the points' shape values), and the sums Σ_q S_q ∇φ_a(x_q) of
+/// S_q = w (∇f + ∇fᵀ + (λ/μ) div f I) for f = u, v, a (3m × 3: row 3a + c,
+/// column f; the sides' points alike, as the fit's strain term sums them).
 struct FitPoints {
     field: ElementField,
     fields: Vec<f64>,
-    strains: [Vec<f64>; 3],
+    strain: nalgebra::DMatrix<f64>,
 }
 
 /// An [`OldField`] on one element: its evaluator and its DOF values.
@@ -1603,7 +1595,7 @@ impl Integrator<'_> {
             .map(|old| FitPoints {
                 field: ElementField::new(&old, cells.element),
                 fields: Vec::new(),
-                strains: Default::default(),
+                strain: nalgebra::DMatrix::zeros(3 * m, 3),
             });
         let ratio = self.lame.lambda / self.lame.mu;
         for cell in &cells.cells {
@@ -1621,11 +1613,17 @@ impl Integrator<'_> {
                     for f in field {
                         fit.fields.extend((f * w).iter());
                     }
-                    for g in gradients {
-                        let strain =
-                            (g + g.transpose() + Matrix3::identity() * (g.trace() * ratio)) * w;
-                        // Column-major: entry (c, j) at 3j + c.
-                        fit.strains[(cell.side + 1) as usize].extend(strain.iter());
+                    // (S ∇φ_a: 9 products a function and field, where the
+                    // gradient columns' product with the 27 entries of the
+                    // three S took 3× the work, two thirds of it unused.)
+                    for (f, g) in gradients.iter().enumerate() {
+                        let s = (g + g.transpose() + Matrix3::identity() * (g.trace() * ratio)) * w;
+                        for (a, ga) in gr.iter().enumerate() {
+                            let sg = s * ga;
+                            for c in 0..3 {
+                                fit.strain[(3 * a + c, f)] += sg[c];
+                            }
+                        }
                     }
                 }
                 if !self.stiffness {
@@ -1662,7 +1660,7 @@ impl Integrator<'_> {
             self.lump(cells, &lump_n, &lump_n2, block, sink);
         }
         if !per_point {
-            merge_small_sides(&mut sides, fit.as_mut(), shapes.volume);
+            merge_small_sides(&mut sides, shapes.volume);
         }
         let mut gradients = fit
             .as_ref()
@@ -1692,29 +1690,7 @@ impl Integrator<'_> {
             let v = nalgebra::DMatrixView::from_slice(&mass_values, m, n);
             let f = nalgebra::DMatrixView::from_slice(&fit.fields, 9, n);
             let values = v * f.transpose();
-            // Σ_q S_q ∇φ_a(x_q) per side and field f, from one product of
-            // the side's gradient columns C (3m × n) with its matrices
-            // (27 × n, entry (c, j) of field f at row 9f + 3j + c): X = C Sᵀ,
-            // strain_{3a+c, f} = Σ_j X_{3a+j, 9f+3j+c}.
-            let mut strain = nalgebra::DMatrix::<f64>::zeros(3 * m, 3);
-            for ((columns, weights), strains) in sides.iter().zip(&fit.strains) {
-                let n = weights.len();
-                if n == 0 {
-                    continue;
-                }
-                let c = nalgebra::DMatrixView::from_slice(columns, 3 * m, n);
-                let s = nalgebra::DMatrixView::from_slice(strains, 27, n);
-                let x = c * s.transpose();
-                for f in 0..3 {
-                    for a in 0..m {
-                        for ci in 0..3 {
-                            strain[(3 * a + ci, f)] += (0..3)
-                                .map(|j| x[(3 * a + j, 9 * f + 3 * j + ci)])
-                                .sum::<f64>();
-                        }
-                    }
-                }
-            }
+            let strain = fit.strain;
             block.fit = Some(Box::new(TipFit {
                 l2,
                 gradients,
