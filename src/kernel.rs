@@ -483,3 +483,72 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     }
     (s[0] + s[1]) + (s[2] + s[3]) + tail
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A symmetric n × n matrix (row-major) and its packed lower triangle.
+    fn symmetric(n: usize, seed: u64) -> (Vec<f64>, Vec<f64>) {
+        let mut state = seed;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let mut full = vec![0.0; n * n];
+        for r in 0..n {
+            for c in 0..=r {
+                let v = next();
+                full[r * n + c] = v;
+                full[c * n + r] = v;
+            }
+        }
+        let mut packed = vec![0.0; packed_len(n)];
+        for r in 0..n {
+            for c in 0..=r {
+                packed[packed_index(r, c)] = full[r * n + c];
+                assert_eq!(packed_index(r, c), packed_index(c, r));
+            }
+        }
+        (full, packed)
+    }
+
+    #[test]
+    fn packed_forces_and_blocks_equal_the_full_matrix() {
+        // m = 1, 2, 7 and 20 (a Tet4 tip element's functions): the row
+        // lengths of the packed pass cover every remainder of the chunks of 4.
+        for m in [1, 2, 7, 20] {
+            let n = 3 * m;
+            let (full, packed) = symmetric(n, m as u64);
+            let kernel = DenseKernel {
+                stiffness: &packed,
+                rotation: Matrix3::identity(),
+            };
+            let u: Vec<f64> = (0..n).map(|i| (i as f64 * 0.37).sin()).collect();
+            let mut h = vec![f64::NAN; n];
+            let energy = kernel.local_forces(&u, &mut h);
+            let mut want_energy = 0.0;
+            for i in 0..n {
+                let want: f64 = (0..n).map(|j| full[i * n + j] * u[j]).sum();
+                assert!(
+                    (h[i] - want).abs() <= 1e-14 * (1.0 + want.abs()),
+                    "m {m} row {i}"
+                );
+                want_energy += 0.5 * u[i] * want;
+            }
+            assert!((energy - want_energy).abs() <= 1e-13 * (1.0 + want_energy.abs()));
+            for a in 0..m {
+                for b in 0..=a {
+                    let block = kernel.block(a, b);
+                    for i in 0..3 {
+                        for j in 0..3 {
+                            assert_eq!(block[(i, j)], full[(3 * a + i) * n + 3 * b + j]);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
