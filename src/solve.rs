@@ -469,6 +469,8 @@ pub struct Cholesky {
     factored: bool,
     /// Number of numeric factorisations done (a work counter tests can pin).
     pub factorisations: usize,
+    /// The fill-reducing ordering, in words (for [`Cholesky::describe`]).
+    ordering: &'static str,
 }
 
 /// How the factor is held: faer's factorisation of the whole matrix, or two
@@ -532,18 +534,25 @@ impl Cholesky {
         }
         let nd = Ordering::nested_dissection(pattern, blocks)?;
         let mut best = Cholesky::with(pattern, &nd, parallelism)?;
+        best.ordering = if blocks.is_some() {
+            "METIS nested dissection on the shape-function graph"
+        } else {
+            "METIS nested dissection"
+        };
         if pattern.n >= NESTED_DISSECTION_FROM {
             return Ok(best);
         }
         if blocks.is_some() {
             let equations = Ordering::nested_dissection(pattern, None)?;
-            let equations = Cholesky::with(pattern, &equations, parallelism)?;
+            let mut equations = Cholesky::with(pattern, &equations, parallelism)?;
             if equations.factor_nnz() < best.factor_nnz() {
+                equations.ordering = "METIS nested dissection on the equation graph";
                 best = equations;
             }
         }
-        let amd = Cholesky::with(pattern, &Ordering::Amd, parallelism)?;
+        let mut amd = Cholesky::with(pattern, &Ordering::Amd, parallelism)?;
         Ok(if amd.factor_nnz() <= best.factor_nnz() {
+            amd.ordering = "AMD ordering, the sparsest";
             amd
         } else {
             best
@@ -612,6 +621,10 @@ impl Cholesky {
             })),
             factored: false,
             factorisations: 0,
+            ordering: match ordering {
+                Ordering::Amd => "AMD ordering",
+                Ordering::Custom(_) => "a given ordering",
+            },
         })
     }
 
@@ -633,6 +646,7 @@ impl Cholesky {
             )?)),
             factored: false,
             factorisations: 0,
+            ordering: "nested dissection",
         })
     }
 
@@ -641,9 +655,10 @@ impl Cholesky {
     pub fn describe(&self) -> String {
         match &self.factor {
             Factor::Whole(_) => format!(
-                "whole ({} equations, {} entries in L)",
+                "whole ({} equations, {} entries in L, {})",
                 self.pattern.n,
-                self.factor_nnz()
+                self.factor_nnz(),
+                self.ordering
             ),
             Factor::Split(s) => {
                 let [a, b] = s.side_lens();

@@ -1825,9 +1825,16 @@ fn the_fill_reducing_ordering_keeps_its_sparsest_candidate_with_a_tip_front() {
     let m = seed_beam(mesh, Formulation::Corotational, Some(cut)).unwrap();
     let shapes = equation_shapes(&m);
     let seq = Parallelism::SEQUENTIAL;
-    let chosen = Cholesky::fill_reducing(&m.pattern, Some(&shapes), seq)
-        .unwrap()
-        .factor_nnz();
+    let factor = Cholesky::fill_reducing(&m.pattern, Some(&shapes), seq).unwrap();
+    let chosen = factor.factor_nnz();
+    // `run` prints this line: it names the ordering the run took.
+    assert!(
+        factor
+            .describe()
+            .contains("nested dissection on the equation graph"),
+        "{}",
+        factor.describe()
+    );
     let nnz = |ordering: Ordering| {
         Cholesky::with(&m.pattern, &ordering, seq)
             .unwrap()
