@@ -297,17 +297,10 @@ impl DenseKernel<'_> {
         }
     }
 
-    /// Block (a, b) of the local stiffness, b ≤ a (off the diagonal, each
-    /// of its rows three values of one packed row).
+    /// Block (a, b) of the local stiffness.
     #[inline(always)]
     fn block(&self, a: usize, b: usize) -> Matrix3<f64> {
-        if a == b {
-            return Matrix3::from_fn(|i, j| self.stiffness[packed_index(3 * a + i, 3 * b + j)]);
-        }
-        Matrix3::from_fn(|i, j| {
-            let r = 3 * a + i;
-            self.stiffness[r * (r + 1) / 2 + 3 * b + j]
-        })
+        Matrix3::from_fn(|i, j| self.stiffness[packed_index(3 * a + i, 3 * b + j)])
     }
 
     /// The tangent R K Rᵀ block by block, for b ≤ a.

@@ -1769,11 +1769,9 @@ impl Integrator<'_> {
                 let ab = a.fixed_view::<3, 3>(3 * p, 3 * q);
                 let trace = ab.trace();
                 for i in 0..3 {
-                    for j in 0..3 {
+                    // Columns up to the diagonal in the diagonal block.
+                    for j in 0..if q == p { i + 1 } else { 3 } {
                         let (r, c) = (3 * p + i, 3 * q + j);
-                        if c > r {
-                            continue;
-                        }
                         let mut v = lambda * ab[(i, j)] + mu * ab[(j, i)];
                         if i == j {
                             v += mu * trace;
