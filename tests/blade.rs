@@ -249,22 +249,7 @@ steps = 30
     // triangles change at every step, its set-ups only by round-off there
     // (an exact comparison made 15 events of the 6): the same events and
     // the same trajectory.
-    let a = [
-        0.2082163814416391,
-        -0.17428523927384681,
-        -0.01999829746786782,
-    ];
-    let b = [
-        0.2082163814416391,
-        0.05153794974633749,
-        -0.012297575158706046,
-    ];
-    let t = [
-        -0.08312241588840269,
-        -0.0005623564917845232,
-        0.01649106814173739,
-    ];
-    let path_text = as_straight_path(text, a, b, t);
+    let path_text = as_straight_path(text);
     assert_ne!(path_text, text);
     let (path, _, _) = run(&path_text);
     let got: Vec<usize> = path.sweep.events.iter().map(|e| e.step).collect();
@@ -314,22 +299,7 @@ rayleigh = { mass = 5.0, stiffness = 0.0 }
 "#;
     let run = |text: &str| run_scene(&Scene::parse(text, Path::new("leaves.toml")).unwrap());
     let travel = run(text);
-    let a = [
-        0.13684576888953098,
-        0.11713827168376509,
-        0.17800444384425707,
-    ];
-    let b = [
-        0.13684576888953098,
-        0.08065537206825153,
-        0.011544773684219606,
-    ];
-    let t = [
-        -0.08552586176686636,
-        -0.05069082279502542,
-        0.011109887444092017,
-    ];
-    let path_text = as_straight_path(text, a, b, t);
+    let path_text = as_straight_path(text);
     assert_ne!(path_text, text);
     let path = run(&path_text);
     let steps = |r: &xfem_cut::blade::Progressive| -> Vec<usize> {
@@ -389,24 +359,7 @@ rayleigh = { mass = 5.0, stiffness = 0.0 }
 "#;
     let run = |text: &str| run_scene(&Scene::parse(text, Path::new("keyframes.toml")).unwrap());
     let travel = run(text);
-    let path_text = as_straight_path(
-        text,
-        [
-            0.1278983543265442,
-            0.17057454530104296,
-            0.024268326304106205,
-        ],
-        [
-            0.1278983543265442,
-            -0.04619197829541499,
-            -0.04528866705915213,
-        ],
-        [
-            -0.02631364225915566,
-            0.011372165601790494,
-            -0.03544007128642615,
-        ],
-    );
+    let path_text = as_straight_path(text);
     assert_ne!(path_text, text);
     let path = run(&path_text);
     let steps = |r: &xfem_cut::blade::Progressive| -> Vec<usize> {
@@ -440,10 +393,28 @@ fn path_against_travel(
     diff / scale
 }
 
-/// `text` (a case whose blade a–b travels by t from 0.05 to 0.2 s) with the
-/// same sweep as a path of three keyframes on the line (at 0.05, 0.125, 0.2 s).
-fn as_straight_path(text: &str, a: [f64; 3], b: [f64; 3], t: [f64; 3]) -> String {
-    let at = |p: [f64; 3], f: f64| {
+/// The numbers of the line of `text` that starts with `key = `.
+fn numbers_of(text: &str, key: &str) -> Vec<f64> {
+    let line = text
+        .lines()
+        .find(|l| l.starts_with(&format!("{key} = ")))
+        .unwrap_or_else(|| panic!("no `{key}` in the case"));
+    line[key.len() + 3..]
+        .split([',', '[', ']'])
+        .map(str::trim)
+        .filter(|x| !x.is_empty())
+        .map(|x| x.parse().unwrap())
+        .collect()
+}
+
+/// `text` (a case whose blade a–b travels by t from 0.05 to 0.2 s, its
+/// `blade` and `travel` read from it) with the same sweep as a path of
+/// three keyframes on the line (at 0.05, 0.125, 0.2 s).
+fn as_straight_path(text: &str) -> String {
+    let edge = numbers_of(text, "blade");
+    let t = numbers_of(text, "travel");
+    let (a, b) = (&edge[..3], &edge[3..]);
+    let at = |p: &[f64], f: f64| {
         format!(
             "[{:?}, {:?}, {:?}]",
             p[0] + f * t[0],
