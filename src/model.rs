@@ -1429,13 +1429,40 @@ pub struct OldField<'a> {
 
 /// What a tip element's block collects for its [`TipFit`], point by point:
 /// the old field on the element, w (u, v, a) per point (9 each, in the
-/// order of the points' shape values), and the sums Σ_q S_q ∇φ_a(x_q) of
-/// S_q = w (∇f + ∇fᵀ + (λ/μ) div f I) for f = u, v, a (3m × 3: row 3a + c,
-/// column f; the sides' points alike, as the fit's strain term sums them).
+/// order of the points' shape values), and per side the points' symmetric
+/// S_q = w (∇f + ∇fᵀ + (λ/μ) div f I) for f = u, v, a, 27 a point in the
+/// order of the side's gradient columns (entry (c, d) of S_f at
+/// 9d + 3f + c), for the sums Σ_q S_q ∇φ_a(x_q) ([`FitPoints::strain`]).
 struct FitPoints {
     field: ElementField,
     fields: Vec<f64>,
-    strain: nalgebra::DMatrix<f64>,
+    stresses: [Vec<f64>; 3],
+}
+
+impl FitPoints {
+    /// 3m × 3: Σ_q S_q ∇φ_a(x_q) at row 3a + c, column f, over every side's
+    /// points (`sides` the tip block's gradient columns, 3m a point). Three
+    /// products a side, one per gradient component d: the m × n matrix of
+    /// ∂_d φ_a (strides 3 and 3m in the columns) times the n × 9 of
+    /// S_f(c, d) (stride 27). It was a sum of 9 products a function, field
+    /// and point (3 × m × 9 scalar updates a point).
+    fn strain(&self, m: usize, sides: &[(Vec<f64>, Vec<f64>); 3]) -> nalgebra::DMatrix<f64> {
+        let mut r = nalgebra::DMatrix::<f64>::zeros(m, 9);
+        for ((columns, weights), stresses) in sides.iter().zip(&self.stresses) {
+            let n = weights.len();
+            if n == 0 {
+                continue;
+            }
+            for d in 0..3 {
+                let g =
+                    nalgebra::DMatrixView::from_slice_with_strides(&columns[d..], m, n, 3, 3 * m);
+                let t =
+                    nalgebra::DMatrixView::from_slice_with_strides(&stresses[9 * d..], n, 9, 27, 1);
+                r.gemm(1.0, &g, &t, 1.0);
+            }
+        }
+        nalgebra::DMatrix::from_fn(3 * m, 3, |row, f| r[(row / 3, 3 * f + row % 3)])
+    }
 }
 
 /// An [`OldField`] on one element: its evaluator and its DOF values.
@@ -1595,7 +1622,7 @@ impl Integrator<'_> {
             .map(|old| FitPoints {
                 field: ElementField::new(&old, cells.element),
                 fields: Vec::new(),
-                strain: nalgebra::DMatrix::zeros(3 * m, 3),
+                stresses: Default::default(),
             });
         let ratio = self.lame.lambda / self.lame.mu;
         for cell in &cells.cells {
@@ -1613,15 +1640,14 @@ impl Integrator<'_> {
                     for f in field {
                         fit.fields.extend((f * w).iter());
                     }
-                    // (S ∇φ_a: 9 products a function and field, where the
-                    // gradient columns' product with the 27 entries of the
-                    // three S took 3× the work, two thirds of it unused.)
+                    let stresses = &mut fit.stresses[(cell.side + 1) as usize];
+                    let at = stresses.len();
+                    stresses.resize(at + 27, 0.0);
                     for (f, g) in gradients.iter().enumerate() {
                         let s = (g + g.transpose() + Matrix3::identity() * (g.trace() * ratio)) * w;
-                        for (a, ga) in gr.iter().enumerate() {
-                            let sg = s * ga;
+                        for d in 0..3 {
                             for c in 0..3 {
-                                fit.strain[(3 * a + c, f)] += sg[c];
+                                stresses[at + 9 * d + 3 * f + c] = s[(c, d)];
                             }
                         }
                     }
@@ -1659,6 +1685,8 @@ impl Integrator<'_> {
         if self.need_mass {
             self.lump(cells, &lump_n, &lump_n2, block, sink);
         }
+        // (Before the merge moves the sides' columns: their sum is the same.)
+        let strain = fit.as_ref().map(|fit| fit.strain(m, &sides));
         if !per_point {
             merge_small_sides(&mut sides, shapes.volume);
         }
@@ -1683,14 +1711,13 @@ impl Integrator<'_> {
             let mut mass = nalgebra::DMatrixViewMut::from_slice(&mut block.mass, m, m);
             mass.gemm(1.0, &vw, &v.transpose(), 1.0);
         }
-        if let (Some(fit), Some(gradients)) = (fit, gradients) {
+        if let (Some(fit), Some(gradients), Some(strain)) = (fit, gradients, strain) {
             let l2 = nalgebra::DMatrix::from_row_slice(m, m, &block.mass) / self.rho;
             // Σ_q φ_a(x_q) w_q F_q (the points in `mass_values`' order).
             let n = fit.fields.len() / 9;
             let v = nalgebra::DMatrixView::from_slice(&mass_values, m, n);
             let f = nalgebra::DMatrixView::from_slice(&fit.fields, 9, n);
             let values = v * f.transpose();
-            let strain = fit.strain;
             block.fit = Some(Box::new(TipFit {
                 l2,
                 gradients,
