@@ -30,7 +30,7 @@ use crate::dynamics::{
     DynamicError, DynamicOptions, Energies, EventSolve, LinearFactor, LinearForces, Newmark, State,
 };
 use crate::mesh::TetMesh;
-use crate::model::{Model, ModelError, TipFit, TipFits};
+use crate::model::{same_element_model, Model, ModelError, TipFit, TipFits};
 #[cfg(doc)]
 use crate::solve::BorderedSolve;
 use crate::solve::{Cholesky, Parallelism, SolveError};
@@ -1047,8 +1047,9 @@ pub fn project_tip_change(
 
 /// What [`project_tip_change`] integrates on one element: its fitted
 /// functions (local index, slot), the strain term's weight β, the L² and
-/// gradient Gram products (nl × nl, 3nl × 3nl) and the right-hand sides of
-/// the displacement, the velocity and the acceleration (3 nl each).
+/// gradient Gram products (nl × nl; 3nl × 3nl, ∫ ∂_c φ_i ∂_d φ_j at
+/// (3i + c, 3j + d)) and the right-hand sides of the displacement, the
+/// velocity and the acceleration (3 nl each).
 struct ElementFit {
     local: Vec<(usize, usize)>,
     beta: f64,
@@ -1163,10 +1164,6 @@ fn project_fitted(
     }
     let mut gram_d = BlockGram::new(below);
     let mut rhs = [vec![0.0; 3 * nf], vec![0.0; 3 * nf], vec![0.0; 3 * nf]];
-    let dof = |x: &[f64], s: u32| {
-        let s = s as usize;
-        Vector3::new(x[3 * s], x[3 * s + 1], x[3 * s + 2])
-    };
     // Per element holding a fitted function, side by side: its fitted
     // functions (local index, slot), their Grams' products and right-hand
     // sides; added below in element order.
@@ -1192,83 +1189,23 @@ fn project_fitted(
             return fitted_element(fit, local, beta, ratio, ids, &slot, &*mapped);
         }
         let old_ids = old.element_shapes(e);
-        let (ev_new, ev_old) = (new.element_evaluator(e), old.element_evaluator(e));
-        let mut points = Vec::new();
-        new.field_points_into(e, &ev_new, &mut points);
-        let (mut vals, mut grads) = (vec![0.0; ids.len()], vec![Vector3::zeros(); ids.len()]);
-        let (mut old_vals, mut old_grads) = (
-            vec![0.0; old_ids.len()],
-            vec![Vector3::zeros(); old_ids.len()],
-        );
-        // The fitted functions' values (nl rows) and gradients (3 nl rows:
-        // component c of function i at row c nl + i) at the points (a column
-        // each), for the Grams as products A W Aᵀ.
-        let (nl, np) = (local.len(), points.len());
-        let mut a_val = nalgebra::DMatrix::<f64>::zeros(nl, np);
-        let mut a_grad = nalgebra::DMatrix::<f64>::zeros(3 * nl, np);
-        let mut weights = Vec::with_capacity(np);
-        let mut rhs = [vec![0.0; 3 * nl], vec![0.0; 3 * nl], vec![0.0; 3 * nl]];
-        for (q, &(x, w, side)) in points.iter().enumerate() {
-            ev_new.eval(&x, side, &mut vals, &mut grads);
-            // The old field on the side x lies on in the old element.
-            ev_old.eval(&x, ev_old.side_at(&x, side), &mut old_vals, &mut old_grads);
-            // Residuals r of d, v and a and their gradients ∇r (row c = ∇r_c).
-            let mut r = [Vector3::zeros(); 3];
-            let mut gr = [Matrix3::zeros(); 3];
-            for (a, &s) in old_ids.iter().enumerate() {
-                for (f, x) in [&state.d, &state.v, &state.a].into_iter().enumerate() {
-                    let xa = dof(x, s);
-                    r[f] += xa * old_vals[a];
-                    gr[f] += xa * old_grads[a].transpose();
-                }
-            }
-            for (a, &s) in ids.iter().enumerate() {
-                if slot[s as usize] == usize::MAX {
-                    for (f, x) in [&mapped.d, &mapped.v, &mapped.a].into_iter().enumerate() {
-                        let xa = dof(x, s);
-                        r[f] -= xa * vals[a];
-                        gr[f] -= xa * grads[a].transpose();
-                    }
-                }
-            }
-            weights.push(w);
-            for (i, &(a, _)) in local.iter().enumerate() {
-                let (va, ga) = (w * vals[a], grads[a] * w);
-                for f in 0..3 {
-                    // ε(r):C:ε(φ e_c)/μ = (λ/μ) div r ∂_c φ + (∇r + ∇rᵀ)_c · ∇φ.
-                    let strain = (gr[f] + gr[f].transpose()) * ga * beta;
-                    let div = gr[f].trace() * ratio;
-                    for c in 0..3 {
-                        rhs[f][3 * i + c] += va * r[f][c] + strain[c] + beta * div * ga[c];
-                    }
-                }
-                for c in 0..3 {
-                    a_grad[(c * nl + i, q)] = grads[a][c];
-                }
-                a_val[(i, q)] = vals[a];
-            }
-        }
-        // Σ_q w_q φ_a φ_b and Σ_q w_q ∂_i φ_a ∂_j φ_b, one product each.
-        let weighted = |a: &nalgebra::DMatrix<f64>| {
-            let mut aw = a.clone();
-            for (mut col, &w) in aw.column_iter_mut().zip(&weights) {
-                col *= w;
-            }
-            aw
-        };
-        let l2 = weighted(&a_val) * a_val.transpose();
-        let g2 = weighted(&a_grad) * a_grad.transpose();
-        ElementFit {
+        let unchanged = same_element_model(&new.mesh, old.cut.as_ref(), new.cut.as_ref(), e);
+        let at = ElementAt {
+            e,
+            ids,
             local,
             beta,
-            l2,
-            g2,
-            rhs,
+            ratio,
+            slot: &slot,
+        };
+        if unchanged {
+            unchanged_element(new, &at, old_ids, state, &*mapped)
+        } else {
+            evaluated_element(old, new, at, state, &*mapped)
         }
     });
     for fit in fits {
         let (local, beta, l2, g2) = (&fit.local, fit.beta, &fit.l2, &fit.g2);
-        let nl = local.len();
         for (i, &(_, sa)) in local.iter().enumerate() {
             for (total, own) in rhs.iter_mut().zip(&fit.rhs) {
                 for c in 0..3 {
@@ -1280,7 +1217,7 @@ fn project_fitted(
                 if sa < sb {
                     continue;
                 }
-                let trace: f64 = (0..3).map(|k| g2[(k * nl + i, k * nl + j)]).sum();
+                let trace: f64 = (0..3).map(|k| g2[(3 * i + k, 3 * j + k)]).sum();
                 let block = gram_d.block(sa, sb);
                 for ci in 0..3 {
                     for cj in 0..3 {
@@ -1288,8 +1225,7 @@ fn project_fitted(
                             continue;
                         }
                         let mut v = beta
-                            * (ratio * g2[(ci * nl + i, cj * nl + j)]
-                                + g2[(cj * nl + i, ci * nl + j)]);
+                            * (ratio * g2[(3 * i + ci, 3 * j + cj)] + g2[(3 * i + cj, 3 * j + ci)]);
                         if ci == cj {
                             v += l2[(i, j)] + beta * trace;
                         }
@@ -1312,6 +1248,197 @@ fn project_fitted(
         solve: how,
         conditioning,
     })
+}
+
+/// What the projection knows of an element holding a fitted function: its
+/// index, shape functions (`Model::element_shapes`), fitted ones (local
+/// index, slot), the strain term's weight β and λ/μ, and every shape
+/// function's slot (`usize::MAX`: not fitted).
+struct ElementAt<'a> {
+    e: usize,
+    ids: &'a [u32],
+    local: Vec<(usize, usize)>,
+    beta: f64,
+    ratio: f64,
+    slot: &'a [usize],
+}
+
+/// An element's [`ElementFit`] from the old field and the new functions
+/// evaluated at its points (`Model::field_points`).
+fn evaluated_element(
+    old: &Model,
+    new: &Model,
+    at: ElementAt<'_>,
+    state: &State,
+    mapped: &State,
+) -> ElementFit {
+    let ElementAt {
+        e,
+        ids,
+        local,
+        beta,
+        ratio,
+        slot,
+    } = at;
+    let dof = |x: &[f64], s: u32| {
+        let s = s as usize;
+        Vector3::new(x[3 * s], x[3 * s + 1], x[3 * s + 2])
+    };
+    let old_ids = old.element_shapes(e);
+    let (ev_new, ev_old) = (new.element_evaluator(e), old.element_evaluator(e));
+    let mut points = Vec::new();
+    new.field_points_into(e, &ev_new, &mut points);
+    let (mut vals, mut grads) = (vec![0.0; ids.len()], vec![Vector3::zeros(); ids.len()]);
+    let (mut old_vals, mut old_grads) = (
+        vec![0.0; old_ids.len()],
+        vec![Vector3::zeros(); old_ids.len()],
+    );
+    // The fitted functions' values (nl rows) and gradients (3 nl rows:
+    // component c of function i at row 3i + c) at the points (a column
+    // each), for the Grams as products A W Aᵀ.
+    let (nl, np) = (local.len(), points.len());
+    let mut a_val = nalgebra::DMatrix::<f64>::zeros(nl, np);
+    let mut a_grad = nalgebra::DMatrix::<f64>::zeros(3 * nl, np);
+    let mut weights = Vec::with_capacity(np);
+    let mut rhs = [vec![0.0; 3 * nl], vec![0.0; 3 * nl], vec![0.0; 3 * nl]];
+    for (q, &(x, w, side)) in points.iter().enumerate() {
+        ev_new.eval(&x, side, &mut vals, &mut grads);
+        // The old field on the side x lies on in the old element.
+        ev_old.eval(&x, ev_old.side_at(&x, side), &mut old_vals, &mut old_grads);
+        // Residuals r of d, v and a and their gradients ∇r (row c = ∇r_c).
+        let mut r = [Vector3::zeros(); 3];
+        let mut gr = [Matrix3::zeros(); 3];
+        for (a, &s) in old_ids.iter().enumerate() {
+            for (f, x) in [&state.d, &state.v, &state.a].into_iter().enumerate() {
+                let xa = dof(x, s);
+                r[f] += xa * old_vals[a];
+                gr[f] += xa * old_grads[a].transpose();
+            }
+        }
+        for (a, &s) in ids.iter().enumerate() {
+            if slot[s as usize] == usize::MAX {
+                for (f, x) in [&mapped.d, &mapped.v, &mapped.a].into_iter().enumerate() {
+                    let xa = dof(x, s);
+                    r[f] -= xa * vals[a];
+                    gr[f] -= xa * grads[a].transpose();
+                }
+            }
+        }
+        weights.push(w);
+        for (i, &(a, _)) in local.iter().enumerate() {
+            let (va, ga) = (w * vals[a], grads[a] * w);
+            for f in 0..3 {
+                // ε(r):C:ε(φ e_c)/μ = (λ/μ) div r ∂_c φ + (∇r + ∇rᵀ)_c · ∇φ.
+                let strain = (gr[f] + gr[f].transpose()) * ga * beta;
+                let div = gr[f].trace() * ratio;
+                for c in 0..3 {
+                    rhs[f][3 * i + c] += va * r[f][c] + strain[c] + beta * div * ga[c];
+                }
+            }
+            for c in 0..3 {
+                a_grad[(3 * i + c, q)] = grads[a][c];
+            }
+            a_val[(i, q)] = vals[a];
+        }
+    }
+    // Σ_q w_q φ_a φ_b and Σ_q w_q ∂_i φ_a ∂_j φ_b, one product each.
+    let weighted = |a: &nalgebra::DMatrix<f64>| {
+        let mut aw = a.clone();
+        for (mut col, &w) in aw.column_iter_mut().zip(&weights) {
+            col *= w;
+        }
+        aw
+    };
+    let l2 = weighted(&a_val) * a_val.transpose();
+    let g2 = weighted(&a_grad) * a_grad.transpose();
+    ElementFit {
+        local,
+        beta,
+        l2,
+        g2,
+        rhs,
+    }
+}
+
+/// [`evaluated_element`] where the element's shape functions and cells are
+/// the same in the old and the new model (`same_element_model`; `old_ids`
+/// its old shape ids, in the same local order): the old field is then
+/// Σ_b u_b φ_b in the new functions, and its integrals are the Grams of
+/// all the element's functions times the old values (the elements around
+/// the front's, which hold a fitted node function but no branch function:
+/// their old functions were evaluated and the residual summed at every
+/// point, 270 of 450 elements at the 1k-Tet10 event of `examples/tip_event`).
+fn unchanged_element(
+    new: &Model,
+    at: &ElementAt<'_>,
+    old_ids: &[u32],
+    state: &State,
+    mapped: &State,
+) -> ElementFit {
+    let (e, m) = (at.e, at.ids.len());
+    let ev = new.element_evaluator(e);
+    let mut points = Vec::new();
+    new.field_points_into(e, &ev, &mut points);
+    let (mut vals, mut grads) = (vec![0.0; m], vec![Vector3::zeros(); m]);
+    // Values (m rows) and gradients (row 3a + i: ∂_i φ_a) at the points.
+    let np = points.len();
+    let mut a_val = nalgebra::DMatrix::<f64>::zeros(m, np);
+    let mut a_grad = nalgebra::DMatrix::<f64>::zeros(3 * m, np);
+    let mut weighted = (a_val.clone(), a_grad.clone());
+    for (q, &(x, w, side)) in points.iter().enumerate() {
+        ev.eval(&x, side, &mut vals, &mut grads);
+        for a in 0..m {
+            a_val[(a, q)] = vals[a];
+            weighted.0[(a, q)] = w * vals[a];
+            for i in 0..3 {
+                a_grad[(3 * a + i, q)] = grads[a][i];
+                weighted.1[(3 * a + i, q)] = w * grads[a][i];
+            }
+        }
+    }
+    let l2 = &weighted.0 * a_val.transpose();
+    let g = &weighted.1 * a_grad.transpose();
+    // The old u, v and a (row b, three columns each), and their integrals
+    // against each function: values = L2 X; strain (row 3a + c, field f) =
+    // Σ_b,d X_b,d ((λ/μ) g(3a+c, 3b+d) + g(3a+d, 3b+c) + δ_cd tr g_ab).
+    let x = nalgebra::DMatrix::from_fn(m, 9, |b, fc| {
+        let (field, c) = (fc / 3, fc % 3);
+        let xs = [&state.d, &state.v, &state.a][field];
+        xs[3 * old_ids[b] as usize + c]
+    });
+    let values = &l2 * &x;
+    let mut strain = nalgebra::DMatrix::<f64>::zeros(3 * m, 3);
+    for a in 0..m {
+        for b in 0..m {
+            let trace: f64 = (0..3).map(|k| g[(3 * a + k, 3 * b + k)]).sum();
+            for c in 0..3 {
+                for d in 0..3 {
+                    let mut k = at.ratio * g[(3 * a + c, 3 * b + d)] + g[(3 * a + d, 3 * b + c)];
+                    if c == d {
+                        k += trace;
+                    }
+                    for f in 0..3 {
+                        strain[(3 * a + c, f)] += k * x[(b, 3 * f + d)];
+                    }
+                }
+            }
+        }
+    }
+    let fit = TipFit {
+        l2,
+        gradients: g,
+        values,
+        strain,
+    };
+    fitted_element(
+        &fit,
+        at.local.clone(),
+        at.beta,
+        at.ratio,
+        at.ids,
+        at.slot,
+        mapped,
+    )
 }
 
 /// An element's [`ElementFit`] from the integrals a model update took
@@ -1343,8 +1470,6 @@ fn fitted_element(
         .filter(|&b| slot[ids[b] as usize] == usize::MAX)
         .collect();
     let mut rhs = [vec![0.0; 3 * nl], vec![0.0; 3 * nl], vec![0.0; 3 * nl]];
-    let mut l2 = nalgebra::DMatrix::<f64>::zeros(nl, nl);
-    let mut g2 = nalgebra::DMatrix::<f64>::zeros(3 * nl, 3 * nl);
     for (i, &(a, _)) in local.iter().enumerate() {
         let fields = [&mapped.d, &mapped.v, &mapped.a];
         for (f, rhs) in rhs.iter_mut().enumerate() {
@@ -1360,15 +1485,19 @@ fn fitted_element(
                 }
             }
         }
-        for (j, &(b, _)) in local.iter().enumerate() {
-            l2[(i, j)] = fit.l2[(a, b)];
-            for c in 0..3 {
-                for d in 0..3 {
-                    g2[(c * nl + i, d * nl + j)] = g[(3 * a + c, 3 * b + d)];
-                }
-            }
-        }
     }
+    // The fitted functions' rows and columns of the element's Grams (all
+    // of them, in order, where none is prescribed: a copy).
+    let (l2, g2) = if local.iter().enumerate().all(|(i, &(a, _))| i == a) && nl == ids.len() {
+        (fit.l2.clone(), g.clone())
+    } else {
+        let rows: Vec<usize> = local.iter().map(|&(a, _)| a).collect();
+        let rows3: Vec<usize> = rows.iter().flat_map(|&a| 3 * a..3 * a + 3).collect();
+        (
+            fit.l2.select_rows(&rows).select_columns(&rows),
+            g.select_rows(&rows3).select_columns(&rows3),
+        )
+    };
     ElementFit {
         local,
         beta,
