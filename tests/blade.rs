@@ -1924,10 +1924,15 @@ fn the_projection_reproduces_a_linear_field_across_tip_events() {
 /// projection that evaluates them itself, to round-off of the Gram solves
 /// (measured 5.6e-13 Tet4, 2.4e-12 Tet10 of the largest value; on the
 /// 1k Tet10 beam of `examples/tip_event`, whose Gram's scaled conditioning
-/// is 3e-9, 1.3e-9), for a state that is no field of the new space.
+/// is 3e-9, 1.3e-9), for a state that is no field of the new space. A
+/// sweep's projections keep the Gram's symbolic factorisation for the next
+/// event (`ProjectionCache`): the event projected again on it is the same
+/// to the bit, and took it.
 #[test]
 fn the_updates_projection_integrals_give_the_separate_projection() {
-    use xfem_cut::blade::{map_state_fitted_with, map_state_reported_with};
+    use xfem_cut::blade::{
+        map_state_fitted_cached, map_state_fitted_with, map_state_reported_with, ProjectionCache,
+    };
     use xfem_cut::dynamics::State;
     use xfem_cut::mesh::ElementKind;
     use xfem_cut::solve::Parallelism;
@@ -1981,6 +1986,20 @@ fn the_updates_projection_integrals_give_the_separate_projection() {
             let fitted =
                 map_state_fitted_with(&old, &fitted_model, &state, &fits, Parallelism::SEQUENTIAL)
                     .0;
+            let mut cache = ProjectionCache::default();
+            for reused in [0, 1] {
+                let (cached, projection) = map_state_fitted_cached(
+                    &old,
+                    &fitted_model,
+                    &state,
+                    &fits,
+                    Parallelism::SEQUENTIAL,
+                    &mut cache,
+                );
+                assert!(projection.is_some());
+                assert_eq!(cache.reused, reused);
+                assert!(cached.d == fitted.d && cached.v == fitted.v && cached.a == fitted.a);
+            }
             for (x, y) in [
                 (&separate.d, &fitted.d),
                 (&separate.v, &fitted.v),
