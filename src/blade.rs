@@ -1226,12 +1226,12 @@ fn project_fitted(
         let e = elements[k];
         let at = ElementAt::new(new, e, &slot);
         if let Some(fit) = fits.get(&e) {
-            return fitted_element(fit, at.local, at.beta, at.ratio, at.ids, &slot, &*mapped);
+            return fitted_element(fit, at, &*mapped);
         }
         let old_ids = old.element_shapes(e);
         let unchanged = same_element_model(&new.mesh, old.cut.as_ref(), new.cut.as_ref(), e);
         if unchanged {
-            unchanged_element(new, &at, old_ids, state, &*mapped)
+            unchanged_element(new, at, old_ids, state, &*mapped)
         } else {
             evaluated_element(old, new, at, state, &*mapped)
         }
@@ -1425,7 +1425,7 @@ fn evaluated_element(
 /// point, 270 of 450 elements at the 1k-Tet10 event of `examples/tip_event`).
 fn unchanged_element(
     new: &Model,
-    at: &ElementAt<'_>,
+    at: ElementAt<'_>,
     old_ids: &[u32],
     state: &State,
     mapped: &State,
@@ -1485,15 +1485,7 @@ fn unchanged_element(
         values,
         strain,
     };
-    fitted_element(
-        &fit,
-        at.local.clone(),
-        at.beta,
-        at.ratio,
-        at.ids,
-        at.slot,
-        mapped,
-    )
+    fitted_element(&fit, at, mapped)
 }
 
 /// An element's [`ElementFit`] from the integrals a model update took
@@ -1501,15 +1493,15 @@ fn unchanged_element(
 /// slots), the Grams restricted to the fitted functions, and the
 /// right-hand sides: the old field's integrals less the Grams' products
 /// with the mapped values of the functions not fitted.
-fn fitted_element(
-    fit: &TipFit,
-    local: Vec<(usize, usize)>,
-    beta: f64,
-    ratio: f64,
-    ids: &[u32],
-    slot: &[usize],
-    mapped: &State,
-) -> ElementFit {
+fn fitted_element(fit: &TipFit, at: ElementAt<'_>, mapped: &State) -> ElementFit {
+    let ElementAt {
+        ids,
+        local,
+        beta,
+        ratio,
+        slot,
+        ..
+    } = at;
     let nl = local.len();
     let g = &fit.gradients;
     // The Gram's entry (a c, b d).
@@ -2439,7 +2431,8 @@ mod tests {
                 {
                     continue;
                 }
-                let by_grams = unchanged_element(&new, &at, old.element_shapes(e), &state, &mapped);
+                let by_grams = unchanged_element(&new, at, old.element_shapes(e), &state, &mapped);
+                let at = ElementAt::new(&new, e, &slot);
                 let by_points = evaluated_element(&old, &new, at, &state, &mapped);
                 let differ = |x: &[f64], y: &[f64]| {
                     let scale = x.iter().fold(0.0f64, |s, v| s.max(v.abs()));
