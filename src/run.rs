@@ -166,7 +166,7 @@ pub fn solve_scene_with(
         return Ok(result);
     }
     // The fill-reducing rule of `Cholesky::fill_reducing` (METIS nested
-    // dissection on the node graph from 10k equations, else the sparsest of
+    // dissection on the node graph from 10k equations, else the cheapest of
     // it, nested dissection on the equation graph and AMD; split in halves
     // on two threads), on another thread while
     // the model's scatter maps are built when there are two.

@@ -451,6 +451,19 @@ impl BlockGraph {
 /// more than one thread (when asked to).
 pub const PARALLEL_FACTOR_FROM: usize = 40_000_000;
 
+/// What one update pair of the supernodal factorisation
+/// ([`Cholesky::update_pairs`]) costs beyond its arithmetic, in the flops of
+/// [`Cholesky::factor_flops`]. Fitted to faer's numeric factorisation of
+/// the seed beam's corotational tangent on this project's 2-core machine
+/// (AMD and nested dissection on the shape and on the equation graph, 1k
+/// and 2k Tet4 uncut, extended and tip-enriched, 200 and 1k Tet10, 3k Tet4;
+/// 24 medians of 60 interleaved factorisations): time ≈ 5.1e-8 ms ×
+/// (flops + 31000 × pairs), within 13 % of each. At 1k Tet4 AMD makes about
+/// half the pairs of nested dissection (180–228 against 480–580) and its
+/// factorisation took 0.78–0.83 ms against 1.00–1.15 ms, though it fills
+/// 2–5 % more.
+pub const UPDATE_PAIR_COST: f64 = 31_000.0;
+
 /// Order from which [`Cholesky::fill_reducing`] takes nested dissection without comparing.
 pub const NESTED_DISSECTION_FROM: usize = 10_000;
 
@@ -501,8 +514,13 @@ impl Cholesky {
     /// 30–40 % less from 34k on, numeric factorisation 1.2–2.5× faster. So:
     /// from [`NESTED_DISSECTION_FROM`] equations on, nested dissection; below,
     /// AMD and nested dissection on the `blocks` graph and on the equation
-    /// graph, keeping the one with fewer non-zeros in L (the analyses are
-    /// cheap there, and the factor is refactorised every Newton iteration).
+    /// graph, keeping the one whose numeric factorisation is estimated to
+    /// cost least ([`Cholesky::factor_cost`]: its flops and its supernodes'
+    /// update pairs; the analyses are cheap there, and the factor is
+    /// refactorised every Newton iteration). Until 2026-12-06 the rule kept
+    /// the fewest entries in L; at 1k Tet4 that took nested dissection for
+    /// 2–5 % fewer entries but twice the update pairs, and a factorisation
+    /// 20–30 % slower than AMD's (`UPDATE_PAIR_COST`).
     /// The equation graph's dissection is the candidate that tip enrichment
     /// asked for: a tip node's twelve branch DOFs are four blocks of the
     /// shape graph, and its dissection filled the seed beam's factor with
@@ -545,18 +563,28 @@ impl Cholesky {
         if blocks.is_some() {
             let equations = Ordering::nested_dissection(pattern, None)?;
             let mut equations = Cholesky::with(pattern, &equations, parallelism)?;
-            if equations.factor_nnz() < best.factor_nnz() {
+            if equations.cheaper_than(&best) {
                 equations.ordering = "METIS nested dissection on the equation graph";
                 best = equations;
             }
         }
         let mut amd = Cholesky::with(pattern, &Ordering::Amd, parallelism)?;
-        Ok(if amd.factor_nnz() <= best.factor_nnz() {
-            amd.ordering = "AMD ordering, the sparsest";
+        Ok(if !best.cheaper_than(&amd) {
+            amd.ordering = "AMD ordering, the cheapest";
             amd
         } else {
             best
         })
+    }
+
+    /// Whether this factor's numeric factorisation is estimated to cost less
+    /// than `other`'s: by [`Cholesky::factor_cost`] where both are
+    /// supernodal, else by their entries.
+    fn cheaper_than(&self, other: &Cholesky) -> bool {
+        match (self.factor_cost(), other.factor_cost()) {
+            (Some(a), Some(b)) => a < b,
+            _ => self.factor_nnz() < other.factor_nnz(),
+        }
     }
 
     /// Symbolic factorisation of `pattern` with `ordering`; the numeric
@@ -731,6 +759,45 @@ impl Cholesky {
             }
         }
         Some(flops)
+    }
+
+    /// The number of supernodes of a supernodal factor (None: simplicial or split).
+    pub fn supernodes(&self) -> Option<usize> {
+        self.supernodal().map(|s| s.n_supernodes())
+    }
+
+    /// The number of supernode pairs (d, s) where supernode d's columns
+    /// update supernode s: what faer's left-looking numeric factorisation
+    /// does one small dense product and scatter for. None for a simplicial
+    /// or split factor.
+    pub fn update_pairs(&self) -> Option<usize> {
+        let s = self.supernodal()?;
+        let (begin, end) = (s.supernode_begin(), s.supernode_end());
+        let mut owner = vec![0; self.pattern.n];
+        for k in 0..s.n_supernodes() {
+            owner[begin[k]..end[k]].fill(k);
+        }
+        let (rows, idx) = (s.col_ptr_for_row_idx(), s.row_idx());
+        // A supernode's rows below its diagonal block are sorted, so each
+        // ancestor it updates is one run of equal owners.
+        let pairs = (0..s.n_supernodes())
+            .map(|k| {
+                let below = &idx[rows[k]..rows[k + 1]];
+                below
+                    .iter()
+                    .enumerate()
+                    .filter(|&(i, &r)| i == 0 || owner[below[i - 1]] != owner[r])
+                    .count()
+            })
+            .sum();
+        Some(pairs)
+    }
+
+    /// The estimated cost of one numeric factorisation, in flops:
+    /// [`Cholesky::factor_flops`] plus [`UPDATE_PAIR_COST`] per
+    /// [`Cholesky::update_pairs`]. None for a simplicial or split factor.
+    pub fn factor_cost(&self) -> Option<f64> {
+        Some(self.factor_flops()? + UPDATE_PAIR_COST * self.update_pairs()? as f64)
     }
 
     /// Numeric factorisation of the matrix with the lower-triangle `values`.
