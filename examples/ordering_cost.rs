@@ -4,8 +4,8 @@
 //! tip-enriched, each candidate of `Cholesky::fill_reducing` (AMD, METIS
 //! nested dissection on the shape-function graph and on the equation
 //! graph): entries in L, supernodes, update pairs, flops, the estimated cost
-//! (flops + UPDATE_PAIR_COST × pairs) and the median of 60 numeric
-//! factorisations, the candidates taking turns (this machine's speed drifts
+//! (flops + UPDATE_PAIR_COST × pairs) and the medians of 60 numeric
+//! factorisations and of the solves after them, the candidates taking turns (this machine's speed drifts
 //! by tens of per cent within minutes; interleaving keeps the comparison
 //! fair); then the candidate `fill_reducing` keeps.
 //!
@@ -89,27 +89,31 @@ fn main() {
                 Ordering::nested_dissection(&m.pattern, None).expect("METIS"),
             ),
         ];
-        let mut factors: Vec<(&str, Cholesky, Vec<f64>)> = orderings
+        let mut factors: Vec<(&str, Cholesky, Vec<f64>, Vec<f64>)> = orderings
             .iter()
             .map(|(name, o)| {
-                (
-                    *name,
-                    Cholesky::with(&m.pattern, o, seq).expect("factor"),
-                    vec![],
-                )
+                let f = Cholesky::with(&m.pattern, o, seq).expect("factor");
+                (*name, f, vec![], vec![])
             })
             .collect();
+        let rhs: Vec<f64> = (0..m.pattern.n).map(|i| (i as f64).sin()).collect();
+        let mut x = rhs.clone();
         for _ in 0..60 {
-            for (_, f, times) in factors.iter_mut() {
+            for (_, f, times, solves) in factors.iter_mut() {
                 let t = Instant::now();
                 f.factorize(&values).expect("SPD tangent");
                 times.push(t.elapsed().as_secs_f64() * 1e3);
+                x.copy_from_slice(&rhs);
+                let t = Instant::now();
+                f.solve_in_place(&mut x);
+                solves.push(t.elapsed().as_secs_f64() * 1e3);
             }
         }
-        for (name, f, times) in factors.iter_mut() {
+        for (name, f, times, solves) in factors.iter_mut() {
+            solves.sort_by(f64::total_cmp);
             times.sort_by(f64::total_cmp);
             println!(
-                "  {name:18}: {:8} entries in L, {:4} supernodes, {:5} update pairs, {:.3e} flops, cost {:.3e} (pairs {:.0} %), numeric {:.3} ms",
+                "  {name:18}: {:8} entries in L, {:4} supernodes, {:5} update pairs, {:.3e} flops, cost {:.3e} (pairs {:.0} %), numeric {:.3} ms, solve {:.3} ms",
                 f.factor_nnz(),
                 f.supernodes().unwrap_or(0),
                 f.update_pairs().unwrap_or(0),
@@ -117,7 +121,8 @@ fn main() {
                 f.factor_cost().unwrap_or(f64::NAN),
                 100.0 * UPDATE_PAIR_COST * f.update_pairs().unwrap_or(0) as f64
                     / f.factor_cost().unwrap_or(f64::NAN),
-                times[times.len() / 2]
+                times[times.len() / 2],
+                solves[solves.len() / 2]
             );
         }
     }
