@@ -5,9 +5,10 @@
 //! nested dissection on the shape-function graph and on the equation
 //! graph): entries in L, supernodes, update pairs, flops, the estimated cost
 //! (flops + UPDATE_PAIR_COST × pairs) and the medians of 60 numeric
-//! factorisations and of the solves after them, the candidates taking turns (this machine's speed drifts
-//! by tens of per cent within minutes; interleaving keeps the comparison
-//! fair); then the candidate `fill_reducing` keeps.
+//! factorisations and of the solves after them, the candidates taking turns
+//! (this machine's speed drifts by tens of per cent within minutes;
+//! interleaving keeps the comparison fair); then the candidate
+//! `fill_reducing` keeps.
 //!
 //! `cargo run --release --example ordering_cost -- [NX NY NZ] [tet10] [uncut|extend|tip]`
 //! (default: 3 6 10, Tet4, all three cuts).

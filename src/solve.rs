@@ -461,7 +461,9 @@ pub const PARALLEL_FACTOR_FROM: usize = 40_000_000;
 /// time ≈ 5.1e-8 ms × (flops + 31000 × pairs), within 13 % of each. At 1k Tet4 AMD makes about
 /// half the pairs of nested dissection (180–228 against 480–580) and its
 /// factorisation took 0.78–0.83 ms against 1.00–1.15 ms, though it fills
-/// 2–5 % more.
+/// 2–5 % more. The solves are left out of the estimate: with 1–18 % more
+/// entries, AMD's factors solved as fast at 1k Tet4 (fewer supernodes) and
+/// within 1 % at 3.5k.
 pub const UPDATE_PAIR_COST: f64 = 31_000.0;
 
 /// Order from which [`Cholesky::fill_reducing`] takes nested dissection without comparing.
