@@ -453,12 +453,14 @@ pub const PARALLEL_FACTOR_FROM: usize = 40_000_000;
 
 /// What one update pair of the supernodal factorisation
 /// ([`Cholesky::update_pairs`]) costs beyond its arithmetic, in the flops of
-/// [`Cholesky::factor_flops`]. Fitted to faer's numeric factorisation of
-/// the seed beam's corotational tangent on this project's 2-core machine
-/// (AMD and nested dissection on the shape and on the equation graph, 1k
-/// and 2k Tet4 uncut, extended and tip-enriched, 200 and 1k Tet10, 3k Tet4;
-/// 24 medians of 60 interleaved factorisations, `examples/ordering_cost.rs`):
-/// time ≈ 5.1e-8 ms × (flops + 31000 × pairs), within 13 % of each. At 1k Tet4 AMD makes about
+/// [`Cholesky::factor_flops`]. Fitted by least squares to faer's numeric
+/// factorisation of the seed beam's corotational tangent on this project's
+/// 2-core machine: 24 medians of 60 factorisations, the three candidates
+/// taking turns (AMD, nested dissection on the shape and on the equation
+/// graph), on 1080 Tet4 uncut, extended and tip-enriched, 2688 Tet4 uncut
+/// and tip-enriched, 288 and 1080 Tet10 tip-enriched and 8640 Tet4 uncut
+/// (`examples/ordering_cost.rs` prints the same): time ≈ 5.1e-8 ms ×
+/// (flops + 31000 × pairs), within 13 % of each. At 1k Tet4 AMD makes about
 /// half the pairs of nested dissection (180–228 against 480–580) and its
 /// factorisation took 0.78–0.83 ms against 1.00–1.15 ms, though it fills
 /// 2–5 % more. The solves are left out of the estimate: with 1–18 % more
