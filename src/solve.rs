@@ -1930,6 +1930,53 @@ mod tests {
         assert!(err < 1e-12, "error {err}");
     }
 
+    /// The update pairs against L's structure found by elimination on the
+    /// factor's order (each column's rows below the diagonal passed to its
+    /// parent, the first of them), mapped to faer's supernodes: the
+    /// distinct (supernode of column j, supernode of row i) with i below j
+    /// in another supernode. AMD and nested dissection, 8³ grid, 3 DOFs a
+    /// node; and the estimate is flops + UPDATE_PAIR_COST per pair.
+    #[test]
+    fn update_pairs_are_the_supernode_pairs_the_elimination_couples() {
+        use std::collections::BTreeSet;
+        let (p, _) = grid(8, 3);
+        let nd = Ordering::nested_dissection(&p, None).unwrap();
+        for ordering in [Ordering::Amd, nd] {
+            let chol = Cholesky::with(&p, &ordering, Parallelism::SEQUENTIAL).unwrap();
+            let n = p.n;
+            let mut below = vec![BTreeSet::new(); n];
+            for c in 0..n {
+                for &r in &p.row_idx[p.col_ptr[c]..p.col_ptr[c + 1]] {
+                    let (i, j) = (chol.permuted_row(r), chol.permuted_row(c));
+                    if i != j {
+                        below[i.min(j)].insert(i.max(j));
+                    }
+                }
+            }
+            for j in 0..n {
+                let rows: Vec<usize> = below[j].iter().copied().collect();
+                if let Some((&parent, rest)) = rows.split_first() {
+                    below[parent].extend(rest.iter().copied());
+                }
+            }
+            let s = chol.supernodal().expect("a supernodal factor");
+            let mut owner = vec![usize::MAX; n];
+            for k in 0..s.n_supernodes() {
+                owner[s.supernode_begin()[k]..s.supernode_end()[k]].fill(k);
+            }
+            let pairs: BTreeSet<(usize, usize)> = (0..n)
+                .flat_map(|j| below[j].iter().map(move |&i| (j, i)))
+                .map(|(j, i)| (owner[j], owner[i]))
+                .filter(|(a, b)| a != b)
+                .collect();
+            assert!(pairs.len() > s.n_supernodes(), "{}", pairs.len());
+            assert_eq!(chol.update_pairs(), Some(pairs.len()));
+            assert_eq!(chol.supernodes(), Some(s.n_supernodes()));
+            let cost = chol.factor_flops().unwrap() + UPDATE_PAIR_COST * pairs.len() as f64;
+            assert_eq!(chol.factor_cost(), Some(cost));
+        }
+    }
+
     #[test]
     fn the_first_separator_splits_the_equations_into_sides_that_do_not_couple() {
         let (p, _) = grid(16, 3);
