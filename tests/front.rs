@@ -1805,9 +1805,10 @@ fn ramp_blending_keeps_the_rates_of_issue_11_on_a_jittered_mesh_tet4() {
 /// numeric factorisation is estimated cheapest (`Cholesky::factor_cost`:
 /// flops plus a cost per supernodal update pair). Here that is AMD: nested
 /// dissection on the equation graph fills less (141588 entries in L against
-/// 170712) but makes twice the update pairs (504 against 228), and its
-/// factorisation took 1.8–3.1 against 1.7–2.8 ms (`UPDATE_PAIR_COST`'s
-/// measurements). The rule before kept the fewest entries and fails here.
+/// 170712) but makes twice the update pairs (504 against 228), and in five
+/// interleaved runs its factorisation took 3–9 % longer than AMD's (1.67–2.46
+/// against 1.55–2.26 ms, `examples/ordering_cost.rs`). The rule before kept
+/// the fewest entries and fails here.
 #[test]
 fn the_fill_reducing_ordering_keeps_its_cheapest_candidate_with_a_tip_front() {
     use xfem_cut::assembly::equation_shapes;
