@@ -464,15 +464,16 @@ impl WilliamsFront {
                 let k = edges[i].map_or(0.0, |(a, b)| {
                     cut.edge_tip_weight(a, b, a) + cut.edge_tip_weight(a, b, b)
                 });
-                // With the ramp the Heaviside function is ramped by 1 − R there.
-                let ramp = match edges[i] {
-                    _ if cut.ramp.is_empty() => 0.0,
-                    Some((a, b)) => 0.5 * (cut.ramp_at(a) + cut.ramp_at(b)),
-                    None => cut.ramp_at(i),
-                };
-                let scale = if ramp < 1.0 { 1.0 / (1.0 - ramp) } else { 1.0 };
+                // With the ramp the node's Heaviside function makes 1 − R_i of
+                // the jump there and the tip functions (on every vertex of an
+                // element with R > 0) the rest: a = the whole jump.
                 let own = self.exact(p, side).0;
-                let a = own * (2.0 * f64::from(side) * (1.0 - 0.5 * k) * scale);
+                let share = if cut.ramp.is_empty() {
+                    1.0 - 0.5 * k
+                } else {
+                    1.0
+                };
+                let a = own * (2.0 * f64::from(side) * share);
                 fixed.push((n_nodes + j, a.map(Some).into()));
             }
             if let Some(t) = cut.tip[i] {
