@@ -832,6 +832,19 @@ impl ElementShapes {
         self.kind.nodes() + self.heaviside.len() + N_BRANCH * self.tip.len()
     }
 
+    /// The constant factor of local node `k`'s Heaviside function: 1 − R_k
+    /// (R at the node) on Tet10 with the ramp, else 1 (Tet4's ramp, 1 − R(x),
+    /// varies: [`ElementShapes::eval`]).
+    fn heaviside_scale(&self, k: usize) -> f64 {
+        match &self.ramp {
+            Some(in_i) if self.kind == ElementKind::Tet10 => {
+                let l = node_bary(k);
+                1.0 - (0..4).filter(|&i| in_i[i]).map(|i| l[i]).sum::<f64>()
+            }
+            _ => 1.0,
+        }
+    }
+
     /// Barycentric coordinates of `x` in the element (its centroid for a
     /// degenerate element, which no built model holds).
     pub fn bary(&self, x: &Point3<f64>) -> [f64; 4] {
@@ -876,7 +889,7 @@ impl ElementShapes {
         };
         let mut a = nn;
         match &self.ramp {
-            Some(in_i) if self.kind == ElementKind::Tet10 => {
+            Some(_) if self.kind == ElementKind::Tet10 => {
                 // Tet10 with the ramp: N_k (1 − R_k) ψ_k, R_k = R at the node
                 // (a constant a node: the functions' shifts stay quadratic,
                 // which the tip functions' on the linear λ do too). The jump
@@ -888,9 +901,7 @@ impl ElementShapes {
                     let p = if side == 0 {
                         0.0
                     } else {
-                        let l = node_bary(k);
-                        let r_k: f64 = (0..4).filter(|&i| in_i[i]).map(|i| l[i]).sum();
-                        psi(side, self.node_side[k]) * (1.0 - r_k)
+                        psi(side, self.node_side[k]) * self.heaviside_scale(k)
                     };
                     vals[a] = n[k] * p;
                     grads[a] = gn[k] * p;
@@ -1708,7 +1719,8 @@ impl Integrator<'_> {
             }
         }
         if self.need_mass {
-            self.lump(cells, &lump_n, &lump_n2, block, sink);
+            let scale = |k| shapes.heaviside_scale(k);
+            self.lump(cells, &lump_n, &lump_n2, scale, block, sink);
         }
         // (Before the merge moves the sides' columns: their sum is the same.)
         let strain = fit.as_ref().map(|fit| fit.strain(m, &sides));
@@ -2010,7 +2022,7 @@ impl Integrator<'_> {
             }
         }
         if self.need_mass {
-            self.lump(cells, &lump_n, &lump_n2, block, sink);
+            self.lump(cells, &lump_n, &lump_n2, |_| 1.0, block, sink);
         }
     }
 
@@ -2021,6 +2033,7 @@ impl Integrator<'_> {
         cells: &ElementCells,
         int_n: &[[f64; 10]],
         int_n2: &[[f64; 10]],
+        heaviside_scale: impl Fn(usize) -> f64,
         block: &mut ElementBlock,
         sink: &mut Sink<'_>,
     ) {
@@ -2038,7 +2051,9 @@ impl Integrator<'_> {
                 }
             }
             for (j, &k) in cells.heaviside.iter().enumerate() {
-                let p = cells.psi(cell, k);
+                // (A Heaviside function N_k c_k ψ: mass c_k² ψ² and coupling
+                // c_k ψ times N_k's.)
+                let p = cells.psi(cell, k) * heaviside_scale(k);
                 sink.lumped(block, nn + j, p * p * share[k]);
                 sink.coupling(block, j, p * share[k]);
             }

@@ -1891,3 +1891,83 @@ fn the_fill_reducing_ordering_keeps_its_cheapest_candidate_with_a_tip_front() {
         assert!(pairs >= k - 1 && pairs <= k * (k - 1) / 2, "{k} {pairs}");
     }
 }
+
+/// Tet10 with the ramp: a Heaviside function is N_k (1 − R_k) ψ_k, so its
+/// lumped mass is (1 − R_k)² and its u–a coupling (1 − R_k) times the
+/// plain function's (the lumping's ψ² and ψ times N_k's share). Compared
+/// node by node with the same mesh and cut without the ramp, at the nodes
+/// with 0 < R_k < 1 (mid-nodes between a vertex in I and a blending one,
+/// R_k = ½) and R_k = 0. Before, the lumped masses left the factor out
+/// (equal to the plain ones: 4× too heavy where R_k = ½) while the loads
+/// and consistent masses, from the evaluated functions, had it.
+#[test]
+fn ramped_tet10_heaviside_functions_lump_their_ramp() {
+    let fr = Front::new();
+    let patch = fr.patch();
+    let mesh = mesh(4, ElementKind::Tet10, 0.0);
+    let build = |blending| {
+        let cut = setup_cut(
+            &mesh,
+            &[CutInput {
+                blending,
+                ..CutInput::tip(&patch, 1e-4, Some(0.2))
+            }],
+        )
+        .unwrap();
+        let fixed = boundary_values(&fr, &mesh, &cut);
+        Model::build(ModelInput {
+            mesh: mesh.clone(),
+            material: MATERIAL,
+            formulation: Formulation::Linear,
+            cut: Some(cut),
+            fixed,
+            gravity: None,
+            body_force: None,
+            tractions: &[],
+            need_mass: true,
+        })
+        .unwrap()
+    };
+    let (plain, ramped) = (build(Blending::None), build(Blending::Ramp));
+    let (pc, rc) = (plain.cut.as_ref().unwrap(), ramped.cut.as_ref().unwrap());
+    let (pm, rm) = (
+        plain.lumped_mass.as_ref().unwrap(),
+        ramped.lumped_mass.as_ref().unwrap(),
+    );
+    let (pcpl, rcpl) = (
+        plain.lumped_coupling.as_ref().unwrap(),
+        ramped.lumped_coupling.as_ref().unwrap(),
+    );
+    let edges = mid_edges(&mesh);
+    let nn = mesh.n_nodes();
+    let (mut halves, mut zeros) = (0, 0);
+    for (i, edge) in edges.iter().enumerate() {
+        let (Some(jp), Some(jr)) = (pc.enriched[i], rc.enriched[i]) else {
+            continue;
+        };
+        let r = match *edge {
+            Some((a, b)) => 0.5 * (rc.ramp_at(a) + rc.ramp_at(b)),
+            None => rc.ramp_at(i),
+        };
+        let c = 1.0 - r;
+        let (mp, mr) = (pm[nn + jp], rm[nn + jr]);
+        let (cp, cr) = (pcpl[jp], rcpl[jr]);
+        assert!(
+            (mr - c * c * mp).abs() <= 1e-9 * mp.abs(),
+            "node {i} (R = {r}): lumped {mr:e} against {:e}",
+            c * c * mp
+        );
+        assert!(
+            (cr - c * cp).abs() <= 1e-9 * cp.abs().max(mp.abs()),
+            "node {i} (R = {r}): coupling {cr:e} against {:e}",
+            c * cp
+        );
+        if r == 0.5 {
+            halves += 1;
+        } else if r == 0.0 {
+            zeros += 1;
+        }
+    }
+    println!("compared {halves} Heaviside nodes with R = ½ and {zeros} with R = 0");
+    assert!(halves > 0 && zeros > 0, "{halves} {zeros}");
+}
