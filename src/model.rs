@@ -881,45 +881,27 @@ impl ElementShapes {
             None => (1.0, Vector3::zeros()),
         };
         // With the ramp, the Heaviside enrichment is ramped down by 1 − R
-        // where the tip functions take over the jump.
-        let (h, gh) = if self.ramp.is_some() {
+        // where the tip functions take over the jump: by 1 − R(x) on Tet4, by
+        // its node's constant 1 − R_k on Tet10 ([`ElementShapes::heaviside_scale`]:
+        // the functions' shifts then stay quadratic, as the tip functions' on
+        // the linear λ do; ramped by 1 − R(x) they are cubic and leave what the
+        // tip functions' shifts do not cancel, the exact study's interpolant
+        // H1 error 0.4 at n = 2…6).
+        let (h, gh) = if self.ramp.is_some() && self.kind == ElementKind::Tet4 {
             (1.0 - r, -gr)
         } else {
             (1.0, Vector3::zeros())
         };
         let mut a = nn;
-        match &self.ramp {
-            Some(_) if self.kind == ElementKind::Tet10 => {
-                // Tet10 with the ramp: N_k (1 − R_k) ψ_k, R_k = R at the node
-                // (a constant a node: the functions' shifts stay quadratic,
-                // which the tip functions' on the linear λ do too). The jump
-                // Σ N_k (1 − R_k) a_k interpolates (1 − R) [u]; ramped by
-                // 1 − R(x) instead, the shifts (1 − R) N_k ψ_k are cubic and
-                // leave what the tip functions' shifts do not cancel (the
-                // interpolant's H1 error 0.4 at n = 2…6 on the exact study).
-                for &k in &self.heaviside {
-                    let p = if side == 0 {
-                        0.0
-                    } else {
-                        psi(side, self.node_side[k]) * self.heaviside_scale(k)
-                    };
-                    vals[a] = n[k] * p;
-                    grads[a] = gn[k] * p;
-                    a += 1;
-                }
-            }
-            _ => {
-                for &k in &self.heaviside {
-                    let p = if side == 0 {
-                        0.0
-                    } else {
-                        psi(side, self.node_side[k])
-                    };
-                    vals[a] = n[k] * h * p;
-                    grads[a] = (gn[k] * h + gh * n[k]) * p;
-                    a += 1;
-                }
-            }
+        for &k in &self.heaviside {
+            let p = if side == 0 {
+                0.0
+            } else {
+                psi(side, self.node_side[k]) * self.heaviside_scale(k)
+            };
+            vals[a] = n[k] * h * p;
+            grads[a] = (gn[k] * h + gh * n[k]) * p;
+            a += 1;
         }
         let (mut f, mut g) = (dot4(l, &self.phi), dot4(l, &self.psi));
         // A point within round-off of the front is on it (r = 0: the tip
