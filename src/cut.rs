@@ -343,7 +343,10 @@ pub enum Blending {
     None,
     /// Corrected X-FEM (Fries 2008): λ_k R (F − F(x_k)) with the ramp
     /// R = Σ_{i∈I} λ_i over the tip nodes I, for k in I and the other
-    /// vertices of blending elements (which get tip blocks too).
+    /// vertices of blending elements (the ring: they get tip blocks too, of
+    /// which [`crate::model::ring_free_branches`] are free: all four make
+    /// the tip functions linearly dependent). The default where a case
+    /// gives `tip_radius` ([`Blending::for_cut`]).
     ///
     /// Behind the front, the jump in cut blending elements comes R from the
     /// tip functions and 1 − R from the Heaviside enrichment, ramped by
@@ -352,7 +355,8 @@ pub enum Blending {
     /// (interpolant H1-seminorm error 0.53 → 0.54 from n = 8 to 16; ramped:
     /// 0.087 → 0.043). Tet4 geometric R = 0.2, exact near-front field:
     /// L2 / energy errors 2.1× / 2.6× lower at n = 24 than [`Blending::None`]
-    /// at 1.2× the DOFs (tests/front.rs).
+    /// (9.24e-4 / 0.0390 against 1.91e-3 / 0.0999) at 1.1× the DOFs, orders
+    /// 1.84 / 0.96 against 1.80 / 0.87 (`tests/front.rs blending_measure`).
     ///
     /// Tet10: the Heaviside function of node k is ramped by the constant
     /// 1 − R_k (R at the node), none where R_k = 1 (the vertices in I and
@@ -364,10 +368,30 @@ pub enum Blending {
     /// the solution 3.5–7× worse than [`Blending::None`]). Tet4 needs the
     /// 1 − R(x): there the two shifts add up to a linear function. Tet10
     /// geometric R = 0.2, exact near-front field: L2 / energy errors
-    /// 1.06–1.37× / 1.1–1.3× lower than [`Blending::None`] at n = 3 … 8, at
-    /// 1.02–1.15× the DOFs; orders alike (2.6–2.75 / 1.63–1.64 from n = 6 to 8), the
-    /// linear partition's limit in the blending ring.
+    /// 1.04–1.40× / 1.07–1.33× lower than [`Blending::None`] at n = 3 … 8,
+    /// at 1.02–1.11× the DOFs; orders from n = 6 to 8 3.05 / 2.02 against
+    /// 2.75 / 1.63 (`blending_measure_tet10`).
     Ramp,
+}
+
+impl Blending {
+    /// What a case's cut takes (`run`, `converge`, a blade's events): the
+    /// ramp where its front is tip-enriched within a radius (`tip_radius`:
+    /// geometric enrichment, the optimal rate), none for the topological
+    /// tip or an extended front. Random oblique fronts on jittered Tet4
+    /// meshes, R = 0.2, n = 20 → 28: L2 / energy orders 1.85–1.90 /
+    /// 0.95–0.97 with the ramp, 1.56–1.79 / 0.80–0.89 without, errors
+    /// 2.4–2.8× lower at 1.1× the DOFs (`tests/front.rs
+    /// random_fronts_orders_measure`). On the topological tip the ramp
+    /// lowers the exact field's L2 error 1.5× at n = 24 (3.05e-3 against
+    /// 4.52e-3, 1.04× the DOFs) but makes 4× the tip nodes (365 against 92),
+    /// which a step and a blade's events pay for (`blending_measure`).
+    pub fn for_cut(front: FrontMode, tip_radius: Option<f64>) -> Blending {
+        match (front, tip_radius) {
+            (FrontMode::Tip, Some(_)) => Blending::Ramp,
+            _ => Blending::None,
+        }
+    }
 }
 
 /// One cut of a scene: its surface and how it is set up.

@@ -628,7 +628,7 @@ mod tests {
         // φ (F₀ − F₃) + ψ F₂ = 0 and φ (F₁ − F₂) − ψ F₃ = 0 at every (φ, ψ)
         // on either side: with affine level sets these are dependences of
         // the tip functions wherever every vertex of an element carries them
-        // (the ramp; `model::ramp_gauge_fixes`).
+        // (the ramp; `model::ramp_fixes`).
         let mut seed = 99u64;
         let mut unit = || {
             seed = seed

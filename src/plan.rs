@@ -91,13 +91,26 @@ impl Plan {
                 .cuts
                 .iter()
                 .any(|c| matches!(c.geometry, crate::scene::CutGeometry::Blade { .. }));
+        // Geometric tip enrichment takes the ramp in its blending elements.
+        let ramped = scene.cuts.iter().any(|c| {
+            crate::cut::Blending::for_cut(c.options().front, c.tip_radius)
+                == crate::cut::Blending::Ramp
+        });
+        let ramp = if ramped {
+            format!(
+                "; tip_radius: blending elements ramped (corrected X-FEM), the ring's tip nodes carry branch functions {:?} of 0-3",
+                crate::model::ring_free_branches(model.mesh.kind)
+            )
+        } else {
+            String::new()
+        };
         add(
             "cut set-up (level set, classification, sub-tets, enrichment)",
             cut,
-            match (cut, progressive) {
-                (true, true) => "the scene has a blade: at the start, then near the blade at each step its swept surface may have grown",
-                (true, false) => "the scene has [[cut]]",
-                (false, _) => "no cut in the scene",
+            &match (cut, progressive) {
+                (true, true) => format!("the scene has a blade: at the start, then near the blade at each step its swept surface may have grown{ramp}"),
+                (true, false) => format!("the scene has [[cut]]{ramp}"),
+                (false, _) => "no cut in the scene".to_string(),
             },
         );
         let (data, pattern) = if progressive {

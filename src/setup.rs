@@ -253,7 +253,7 @@ impl crate::scene::CutSpec {
             snap: o.snap,
             front: o.front,
             tip_radius: o.tip_radius,
-            blending: crate::cut::Blending::None,
+            blending: crate::cut::Blending::for_cut(o.front, o.tip_radius),
         }
     }
 

@@ -935,7 +935,7 @@ pub fn solve(variant: &Variant, level: usize) -> Result<Row, StudyError> {
             snap: crate::cut::DEFAULT_SNAP,
             front: variant.front,
             tip_radius: variant.tip_radius,
-            blending: crate::cut::Blending::None,
+            blending: crate::cut::Blending::for_cut(variant.front, variant.tip_radius),
         }],
     )?;
     if variant.precut {
