@@ -105,6 +105,43 @@ fn solve_blended(
     solve_about(&Front::new(), div, kind, jitter, front, radius, blending)
 }
 
+/// The model of the exact field about `fr` on `mesh` (its values on the
+/// boundary), the front treated by `front`, `radius` and `blending`.
+fn exact_model(
+    fr: &Front,
+    mesh: &TetMesh,
+    front: FrontMode,
+    radius: Option<f64>,
+    blending: Blending,
+    need_mass: bool,
+) -> Model {
+    let patch = fr.patch();
+    let cut = setup_cut(
+        mesh,
+        &[CutInput {
+            surface: &patch,
+            snap: 1e-4,
+            front,
+            tip_radius: radius,
+            blending,
+        }],
+    )
+    .unwrap();
+    let fixed = boundary_values(fr, mesh, &cut);
+    Model::build(ModelInput {
+        mesh: mesh.clone(),
+        material: MATERIAL,
+        formulation: Formulation::Linear,
+        cut: Some(cut),
+        fixed,
+        gravity: None,
+        body_force: None,
+        tractions: &[],
+        need_mass,
+    })
+    .unwrap()
+}
+
 fn solve_about(
     fr: &Front,
     div: usize,
@@ -115,32 +152,9 @@ fn solve_about(
     blending: Blending,
 ) -> (Run, Model, Vec<f64>) {
     let mesh = mesh(div, kind, jitter);
-    let patch = fr.patch();
-    let cut = setup_cut(
-        &mesh,
-        &[CutInput {
-            surface: &patch,
-            snap: 1e-4,
-            front,
-            tip_radius: radius,
-            blending,
-        }],
-    )
-    .unwrap();
-    let fixed = boundary_values(fr, &mesh, &cut);
+    let model = exact_model(fr, &mesh, front, radius, blending, false);
+    let cut = model.cut.as_ref().unwrap();
     let (n_tip, n_heaviside) = (cut.n_tip(), cut.n_heaviside());
-    let model = Model::build(ModelInput {
-        mesh,
-        material: MATERIAL,
-        formulation: Formulation::Linear,
-        cut: Some(cut),
-        fixed,
-        gravity: None,
-        body_force: None,
-        tractions: &[],
-        need_mass: false,
-    })
-    .unwrap();
     let mut chol = Cholesky::new(&model.pattern).unwrap();
     let sol = solve_static(&model, &mut chol, &StaticOptions::default()).unwrap();
     let lame = Lame::from(MATERIAL);
@@ -1877,6 +1891,19 @@ fn the_fill_reducing_ordering_keeps_its_cheapest_candidate_with_a_tip_front() {
     }
 }
 
+/// The exact near-front field's model on `mesh` (its boundary values),
+/// geometric R = 0.2 with `blending`, with mass: the lumping tests'.
+fn geometric_model_with_mass(mesh: &TetMesh, blending: Blending) -> Model {
+    exact_model(
+        &Front::new(),
+        mesh,
+        FrontMode::Tip,
+        Some(0.2),
+        blending,
+        true,
+    )
+}
+
 /// Tet10 with the ramp: a Heaviside function is N_k (1 − R_k) ψ_k, so its
 /// lumped mass is (1 − R_k)² and its u–a coupling (1 − R_k) times the
 /// plain function's (the lumping's ψ² and ψ times N_k's share). Compared
@@ -1887,32 +1914,8 @@ fn the_fill_reducing_ordering_keeps_its_cheapest_candidate_with_a_tip_front() {
 /// and consistent masses, from the evaluated functions, had it.
 #[test]
 fn ramped_tet10_heaviside_functions_lump_their_ramp() {
-    let fr = Front::new();
-    let patch = fr.patch();
     let mesh = mesh(4, ElementKind::Tet10, 0.0);
-    let build = |blending| {
-        let cut = setup_cut(
-            &mesh,
-            &[CutInput {
-                blending,
-                ..CutInput::tip(&patch, 1e-4, Some(0.2))
-            }],
-        )
-        .unwrap();
-        let fixed = boundary_values(&fr, &mesh, &cut);
-        Model::build(ModelInput {
-            mesh: mesh.clone(),
-            material: MATERIAL,
-            formulation: Formulation::Linear,
-            cut: Some(cut),
-            fixed,
-            gravity: None,
-            body_force: None,
-            tractions: &[],
-            need_mass: true,
-        })
-        .unwrap()
-    };
+    let build = |blending| geometric_model_with_mass(&mesh, blending);
     let (plain, ramped) = (build(Blending::None), build(Blending::Ramp));
     let (pc, rc) = (plain.cut.as_ref().unwrap(), ramped.cut.as_ref().unwrap());
     let (pm, rm) = (
@@ -1967,27 +1970,8 @@ fn ramped_tet10_heaviside_functions_lump_their_ramp() {
 #[test]
 fn ramped_tet4_heaviside_functions_lump_their_ramp() {
     use xfem_cut::mesh::barycentric;
-    let fr = Front::new();
-    let patch = fr.patch();
     let mesh = mesh(8, ElementKind::Tet4, 0.0);
-    let input = CutInput {
-        blending: Blending::Ramp,
-        ..CutInput::tip(&patch, 1e-4, Some(0.2))
-    };
-    let cut = setup_cut(&mesh, &[input]).unwrap();
-    let fixed = boundary_values(&fr, &mesh, &cut);
-    let model = Model::build(ModelInput {
-        mesh: mesh.clone(),
-        material: MATERIAL,
-        formulation: Formulation::Linear,
-        cut: Some(cut),
-        fixed,
-        gravity: None,
-        body_force: None,
-        tractions: &[],
-        need_mass: true,
-    })
-    .unwrap();
+    let model = geometric_model_with_mass(&mesh, Blending::Ramp);
     let cut = model.cut.as_ref().unwrap();
     let nn = mesh.n_nodes();
     let rho = MATERIAL.density;
