@@ -973,16 +973,35 @@ fn free_slice_by_two_blades(mesh: xfem_cut::mesh::TetMesh, front: xfem_cut::cut:
 
 #[test]
 fn a_tip_front_follows_the_blade_and_the_cut_is_closed_ahead_of_it() {
+    tip_front_follows_the_blade(None);
+}
+
+/// The same with a geometric tip front (`tip_radius`, the ramp of corrected
+/// X-FEM in its blending elements): as the front moves, nodes join and
+/// leave the ramp's ring, whose held branch functions the model update
+/// holds and frees (`Model::update_cut`, checked against a model built
+/// whole in `incremental_update_equals_a_full_build_at_every_event`).
+#[test]
+fn a_geometric_tip_front_follows_the_blade_and_the_cut_is_closed_ahead_of_it() {
+    tip_front_follows_the_blade(Some(0.4));
+}
+
+fn tip_front_follows_the_blade(tip_radius: Option<f64>) {
     // The front (the blade's edge, along x) moves through the bar's elements in y.
     let mesh = bar([3, 3, 6]);
     let p = patch();
     let (start, end) = (0.02, 0.3);
     let blade = Blade::straight(0, p.origin, p.origin + p.u, p.v, start, end).unwrap();
+    let front = xfem_cut::cut::FrontMode::Tip;
     let cuts = CutSet {
         items: vec![CutItem::Blade(blade)],
         snap: DEFAULT_SNAP,
-        front: xfem_cut::cut::FrontMode::Tip,
-        options: Vec::new(),
+        front,
+        options: vec![xfem_cut::blade::CutOptions {
+            snap: DEFAULT_SNAP,
+            front,
+            tip_radius,
+        }],
     };
     let g = Vector3::new(-9.81, 0.0, 0.0);
     let build = |cut| model(&mesh, cut, Formulation::Linear, g, None, true);
@@ -1140,9 +1159,19 @@ fn incremental_update_equals_a_full_build_at_every_event() {
     // The cut plane z = 0.1 inside elements (a front along a node layer is no tip front).
     for (tet10, div) in [(false, [3, 6, 11]), (true, [2, 3, 7])] {
         let mesh = beam_mesh(div, tet10);
-        for front in [FrontMode::Extend, FrontMode::Tip] {
+        // (front, tip_radius: the ramp's ring held and freed as it moves)
+        for (front, radius) in [
+            (FrontMode::Extend, None),
+            (FrontMode::Tip, None),
+            (FrontMode::Tip, Some(0.012)),
+        ] {
             let mut cuts = seed_blade(0.0, 1.0);
             cuts.front = front;
+            cuts.options = vec![xfem_cut::blade::CutOptions {
+                snap: cuts.snap,
+                front,
+                tip_radius: radius,
+            }];
             for formulation in [Formulation::Linear, Formulation::Corotational] {
                 let build = |cut| seed_beam(mesh.clone(), formulation, cut).unwrap();
                 let mut inc = build(None);
@@ -1165,13 +1194,14 @@ fn incremental_update_equals_a_full_build_at_every_event() {
                     inc = next;
                 }
                 println!(
-                    "tet10 {tet10} {front:?} {formulation:?}: {events} events, {changed} element blocks recomputed of {} per build, {dropped} equations dropped; worst K {:.1e}, f_int {:.1e}, load {:.1e}, lumped {:.1e}, consistent mass {:.1e}",
+                    "tet10 {tet10} {front:?} R {radius:?} {formulation:?}: {events} events, {changed} element blocks recomputed of {} per build, {dropped} equations dropped; worst K {:.1e}, f_int {:.1e}, load {:.1e}, lumped {:.1e}, consistent mass {:.1e}",
                     mesh.n_elements() * events, worst[0], worst[1], worst[2], worst[3], worst[4]
                 );
                 assert!(events >= 3, "{events} events");
-                // Most blocks are kept (a tip front changes every element it crosses at every event).
+                // Most blocks are kept (a tip front changes every element it
+                // crosses at every event; a radius, every element it reaches).
                 assert!(
-                    5 * changed < 2 * mesh.n_elements() * events,
+                    radius.is_some() || 5 * changed < 2 * mesh.n_elements() * events,
                     "{changed} recomputed"
                 );
                 for w in worst {
