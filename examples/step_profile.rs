@@ -18,10 +18,12 @@
 //! `steps=N` for N steps instead of 20).
 //!
 //! `cargo run --release --example step_profile` (all three), or
-//! `-- 6 12 24 [tet10] [tip|extend] [steps=N]` for one beam (`tip`: the seed's cut
-//! shortened to x = 0.0137, its front inside elements and tip-enriched, as
-//! in the `tip` group of benches/cut.rs; `extend`: the same cut extended to
-//! the faces of its front elements, what that group compares it with).
+//! `-- 6 12 24 [tet10] [tip|extend] [radius=R [noramp]] [steps=N]` for one
+//! beam (`tip`: the seed's cut shortened to x = 0.0137, its front inside
+//! elements and tip-enriched, as in the `tip` group of benches/cut.rs,
+//! within R of the front with `radius=R`, its blending elements ramped as a
+//! case's are unless `noramp`; `extend`: the same cut extended to the faces
+//! of its front elements, what that group compares it with).
 use nalgebra::{Point3, Vector3};
 use std::hint::black_box;
 use std::time::Instant;
@@ -68,7 +70,18 @@ fn profile(div: [usize; 3], tet10: bool, front: Option<&str>) {
         let input = if front == "extend" {
             CutInput::extend(&patch, DEFAULT_SNAP)
         } else {
-            CutInput::tip(&patch, DEFAULT_SNAP, None)
+            // `radius=R`: geometric, with the blending a case's cut takes
+            // (the ramp), or none with `noramp`.
+            let radius = radius();
+            let blending = if std::env::args().any(|a| a == "noramp") {
+                xfem_cut::cut::Blending::None
+            } else {
+                xfem_cut::cut::Blending::for_cut(xfem_cut::cut::FrontMode::Tip, radius)
+            };
+            CutInput {
+                blending,
+                ..CutInput::tip(&patch, DEFAULT_SNAP, radius)
+            }
         };
         setup_cut(&mesh, &[input]).unwrap()
     });
@@ -250,6 +263,14 @@ fn modes(m: &Model, state: &xfem_cut::dynamics::State) {
             facts as f64 / n as f64
         );
     }
+}
+
+/// The tip front's `tip_radius`: `radius=R` among the arguments, else none (topological).
+fn radius() -> Option<f64> {
+    std::env::args().find_map(|a| {
+        a.strip_prefix("radius=")
+            .map(|r| r.parse().expect("radius"))
+    })
 }
 
 /// Steps of each linear solver's run: `steps=N` among the arguments, else 20.
