@@ -76,7 +76,7 @@ fn profile(div: [usize; 3], tet10: bool, front: Option<&str>) {
             let blending = if std::env::args().any(|a| a == "noramp") {
                 xfem_cut::cut::Blending::None
             } else {
-                xfem_cut::cut::Blending::for_cut(xfem_cut::cut::FrontMode::Tip, radius)
+                xfem_cut::cut::Blending::for_cut(xfem_cut::cut::FrontMode::Tip, radius, mesh.kind)
             };
             CutInput {
                 blending,

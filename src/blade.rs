@@ -617,7 +617,7 @@ impl CutSet {
                         snap: o.snap,
                         front: o.front,
                         tip_radius: o.tip_radius,
-                        blending: crate::cut::Blending::for_cut(o.front, o.tip_radius),
+                        blending: crate::cut::Blending::for_cut(o.front, o.tip_radius, mesh.kind),
                     }
                 })
                 .collect();

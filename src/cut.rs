@@ -25,7 +25,7 @@
 //!   ψ = (side − H_i)/2 ≠ 0.
 
 use crate::front;
-use crate::mesh::{tet_volume, TetMesh, TET_FACES};
+use crate::mesh::{tet_volume, ElementKind, TetMesh, TET_FACES};
 use nalgebra::{Point3, Vector3};
 
 /// Default snapping distance, relative to the element size: cuts closer than
@@ -345,8 +345,8 @@ pub enum Blending {
     /// R = Σ_{i∈I} λ_i over the tip nodes I, for k in I and the other
     /// vertices of blending elements (the ring: they get tip blocks too, of
     /// which [`crate::model::ring_free_branches`] are free: all four make
-    /// the tip functions linearly dependent). The default where a case
-    /// gives `tip_radius` ([`Blending::for_cut`]).
+    /// the tip functions linearly dependent). The default where a Tet4
+    /// case gives `tip_radius` ([`Blending::for_cut`]).
     ///
     /// Behind the front, the jump in cut blending elements comes R from the
     /// tip functions and 1 − R from the Heaviside enrichment, ramped by
@@ -367,28 +367,38 @@ pub enum Blending {
     /// quadratic partition (interpolant H1 error ≈ 0.4 from n = 2 to 6;
     /// the solution 3.5–7× worse than [`Blending::None`]). Tet4 needs the
     /// 1 − R(x): there the two shifts add up to a linear function. Tet10
-    /// geometric R = 0.2, exact near-front field: L2 / energy errors
-    /// 1.04–1.40× / 1.07–1.33× lower than [`Blending::None`] at n = 3 … 8,
-    /// at 1.02–1.11× the DOFs; orders from n = 6 to 8 3.05 / 2.02 against
-    /// 2.75 / 1.63 (`blending_measure_tet10`).
+    /// geometric R = 0.2, exact near-front field, all four branch functions
+    /// on the ring and one node's gauge: L2 / energy errors 1.06–1.37× /
+    /// 1.1–1.3× lower than [`Blending::None`] at n = 3 … 8, at 1.02–1.15×
+    /// the DOFs (`blending_measure_tet10`).
     Ramp,
 }
 
 impl Blending {
     /// What a case's cut takes (`run`, `converge`, a blade's events): the
     /// ramp where its front is tip-enriched within a radius (`tip_radius`:
-    /// geometric enrichment, the optimal rate), none for the topological
-    /// tip or an extended front. Random oblique fronts on jittered Tet4
-    /// meshes, R = 0.2, n = 20 → 28: L2 / energy orders 1.85–1.90 /
-    /// 0.95–0.97 with the ramp, 1.56–1.79 / 0.80–0.89 without, errors
-    /// 2.4–2.8× lower at 1.1× the DOFs (`tests/front.rs
-    /// random_fronts_orders_measure`). On the topological tip the ramp
-    /// lowers the exact field's L2 error 1.5× at n = 24 (3.05e-3 against
-    /// 4.52e-3, 1.04× the DOFs) but makes 4× the tip nodes (365 against 92),
-    /// which a step and a blade's events pay for (`blending_measure`).
-    pub fn for_cut(front: FrontMode, tip_radius: Option<f64>) -> Blending {
-        match (front, tip_radius) {
-            (FrontMode::Tip, Some(_)) => Blending::Ramp,
+    /// geometric enrichment, the optimal rate) on Tet4, none otherwise.
+    ///
+    /// Tet4, random oblique fronts on jittered meshes, R = 0.2, n = 20 →
+    /// 28: L2 / energy orders 1.85–1.90 / 0.95–0.97 with the ramp,
+    /// 1.56–1.79 / 0.80–0.89 without, errors 2.4–2.8× lower at 1.1× the
+    /// DOFs (`tests/front.rs random_fronts_orders_measure`). Its cost: the
+    /// ring's tip blocks (at 1k Tet4 with R under an element, 84 tip nodes
+    /// against 21: `examples/step_profile.rs 3 6 10 tip radius=0.006
+    /// [noramp]`, 1.5–2× the step on a loaded machine).
+    ///
+    /// Not on Tet10: there the ring needs all four branch functions (F₃
+    /// held at zero on it, as everywhere a body's boundary does not
+    /// prescribe it, the exact field's energy error was 1.07–1.47× *above*
+    /// no ramp at n = 3 … 8), and with all four only one node's gauge
+    /// pins their dependence (conditioning 1e8–1e9: [`crate::model::ring_free_branches`]).
+    /// Not on the topological tip: the ramp lowers its L2 error 1.5× at
+    /// n = 24 (3.05e-3 against 4.52e-3) but makes 4× the tip nodes (365
+    /// against 92), which a step and a blade's events pay for
+    /// (`blending_measure`).
+    pub fn for_cut(front: FrontMode, tip_radius: Option<f64>, kind: ElementKind) -> Blending {
+        match (front, tip_radius, kind) {
+            (FrontMode::Tip, Some(_), ElementKind::Tet4) => Blending::Ramp,
             _ => Blending::None,
         }
     }

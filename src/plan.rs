@@ -93,7 +93,7 @@ impl Plan {
                 .any(|c| matches!(c.geometry, crate::scene::CutGeometry::Blade { .. }));
         // Geometric tip enrichment takes the ramp in its blending elements.
         let ramped = scene.cuts.iter().any(|c| {
-            crate::cut::Blending::for_cut(c.options().front, c.tip_radius)
+            crate::cut::Blending::for_cut(c.options().front, c.tip_radius, model.mesh.kind)
                 == crate::cut::Blending::Ramp
         });
         let ramp = if ramped {

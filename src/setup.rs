@@ -236,7 +236,7 @@ impl Scene {
             .cuts
             .iter()
             .zip(&surfaces)
-            .map(|(c, s)| c.input(s.as_ref()))
+            .map(|(c, s)| c.input(s.as_ref(), mesh.kind))
             .collect();
         crate::cut::setup_cut(mesh, &inputs)
             .map(Some)
@@ -245,15 +245,19 @@ impl Scene {
 }
 
 impl crate::scene::CutSpec {
-    /// The cut module's input for this cut on `surface`.
-    pub fn input<'a>(&self, surface: &'a dyn CutSurface) -> CutInput<'a> {
+    /// The cut module's input for this cut on `surface`, in a mesh of `kind`.
+    pub fn input<'a>(
+        &self,
+        surface: &'a dyn CutSurface,
+        kind: crate::mesh::ElementKind,
+    ) -> CutInput<'a> {
         let o = self.options();
         CutInput {
             surface,
             snap: o.snap,
             front: o.front,
             tip_radius: o.tip_radius,
-            blending: crate::cut::Blending::for_cut(o.front, o.tip_radius),
+            blending: crate::cut::Blending::for_cut(o.front, o.tip_radius, kind),
         }
     }
 

@@ -428,8 +428,16 @@ impl WilliamsFront {
             for v in [a, b] {
                 let w = cut.edge_tip_weight(a, b, v);
                 if w > 0.0 {
-                    u -= (self.exact(&x, side).0 - self.exact(&mesh.nodes[v], cut.node_side[v]).0)
-                        * (0.5 * w);
+                    let held = held_branches(mesh, cut, v);
+                    let part = |p: &Point3<f64>, side: i8| {
+                        let (f, g) = self.level_sets(p);
+                        let z = Vector3::zeros();
+                        let (values, _) = branch_with_gradients(f, g, &z, &z, side);
+                        (0..N_BRANCH)
+                            .filter(|k| !held.contains(k))
+                            .fold(Vector3::zeros(), |u, k| u + self.b[k] * values[k])
+                    };
+                    u -= (part(&x, side) - part(&mesh.nodes[v], cut.node_side[v])) * (0.5 * w);
                 }
             }
         }
@@ -477,15 +485,34 @@ impl WilliamsFront {
                 fixed.push((n_nodes + j, a.map(Some).into()));
             }
             if let Some(t) = cut.tip[i] {
+                // (A ring node's held branch functions are zero.)
+                let held = held_branches(mesh, cut, i);
                 for k in 0..N_BRANCH {
+                    let b = if held.contains(&k) {
+                        Vector3::zeros()
+                    } else {
+                        self.b[k]
+                    };
                     fixed.push((
                         n_nodes + cut.n_enriched + N_BRANCH * t + k,
-                        self.b[k].map(Some).into(),
+                        b.map(Some).into(),
                     ));
                 }
             }
         }
         fixed
+    }
+}
+
+/// The branch functions of tip node `i` held at zero: on the ramp's ring,
+/// those outside [`crate::model::ring_free_branches`]; none elsewhere.
+fn held_branches(mesh: &TetMesh, cut: &CutSetup, i: usize) -> Vec<usize> {
+    match cut.ramp.get(i) {
+        Some(false) => {
+            let free = crate::model::ring_free_branches(mesh.kind);
+            (0..N_BRANCH).filter(|k| !free.contains(k)).collect()
+        }
+        _ => Vec::new(),
     }
 }
 
@@ -935,7 +962,7 @@ pub fn solve(variant: &Variant, level: usize) -> Result<Row, StudyError> {
             snap: crate::cut::DEFAULT_SNAP,
             front: variant.front,
             tip_radius: variant.tip_radius,
-            blending: crate::cut::Blending::for_cut(variant.front, variant.tip_radius),
+            blending: crate::cut::Blending::for_cut(variant.front, variant.tip_radius, mesh.kind),
         }],
     )?;
     if variant.precut {
