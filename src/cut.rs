@@ -380,8 +380,8 @@ impl Blending {
     /// geometric enrichment, the optimal rate) on Tet4, none otherwise.
     ///
     /// Tet4, random oblique fronts on jittered meshes, R = 0.2, n = 20 →
-    /// 28: L2 / energy orders 1.85–1.90 / 0.95–0.97 with the ramp,
-    /// 1.56–1.79 / 0.80–0.89 without, errors 2.4–2.8× lower at 1.1× the
+    /// 28: L2 / energy orders 1.85–1.91 / 0.94–0.98 with the ramp,
+    /// 1.56–1.79 / 0.80–0.89 without, L2 errors 2.4–2.8× lower at 1.1× the
     /// DOFs (`tests/front.rs random_fronts_orders_measure`). Its cost: the
     /// ring's tip blocks (at 1k Tet4 with R under an element, 84 tip nodes
     /// against 21: `examples/step_profile.rs 3 6 10 tip radius=0.006

@@ -1375,8 +1375,11 @@ fn random_fronts_orders_measure() {
     // level further (Tet4 12 → 20 → 28, jittered 0.2 h), without and with
     // the ramp in blending elements. Measured (L2 / energy orders 20 → 28):
     // without 1.56 … 1.79 / 0.80 … 0.89 (12 → 20: 1.50 … 1.67 / 0.75 … 0.77),
-    // slowly rising; with the ramp 1.85 … 1.90 / 0.94 … 0.97, and errors at
-    // 28 2.4–2.8× (L2) and 2.7–2.8× (energy) lower at 1.2× the DOFs. The
+    // slowly rising; with the ramp (all four branch functions on its ring,
+    // one node gauged) 1.85 … 1.90 / 0.94 … 0.97, and errors at 28 2.4–2.8×
+    // (L2) and 2.7–2.8× (energy) lower at 1.2× the DOFs; with the ring
+    // holding F₂, F₃ (now) 1.85 … 1.91 / 0.94 … 0.98, L2 at 28 within 1 %
+    // of those and energy 4–8 % above them, at 1.1× the DOFs. The
     // blending elements hold the rest: a finer tip quadrature (collapsed
     // rules of order 6, near-front cells refined twice) moved the errors at
     // 12 and 20 by ≤ 0.3 % and the orders not at all.
