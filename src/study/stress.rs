@@ -356,8 +356,9 @@ points = [[{}, {}, {}]]
 /// `tip_radius` enriches the same nodes at every δ.
 fn front_near_mesh() -> Vec<StressRow> {
     const TEST: &str = "front near nodes, edges, faces";
-    // 1 × 1 × 2 bar, 4 × 4 × 8 hexes (h = 0.25), both ends clamped, gravity.
-    let scene = |zc: f64, xf: f64, radius: &str| {
+    // 1 × 1 × 2 bar, 4 × 4 × 8 hexes (h = 0.25), both ends clamped, gravity;
+    // Tet4, then Tet10 (its rows marked so).
+    let scene = |zc: f64, xf: f64, radius: &str, element: &str| {
         parse(
             "front_bar",
             &format!(
@@ -365,6 +366,7 @@ fn front_near_mesh() -> Vec<StressRow> {
 [body]
 box = [[0.0, 0.0, 0.0], [1.0, 1.0, 2.0]]
 levels = [[4, 4, 8]]
+element = "{element}"
 [material]
 young = 1.0e4
 poisson = 0.3
@@ -385,38 +387,41 @@ type = "static"
     let h = 0.25;
     let criterion = "finite; relative residual ≤ 1e-8";
     let mut rows = Vec::new();
-    for (place, zc0, xf0) in [("node line", 1.0, 0.5), ("face", 1.125, 0.5)] {
-        for (enrichment, radius) in [("topological", ""), ("R = 0.3", "tip_radius = 0.3")] {
-            for delta in [1e-3, 1e-6, 1e-9, 1e-12] {
-                let t = Instant::now();
-                let zc = if place == "node line" {
-                    zc0 + delta * h
-                } else {
-                    zc0
-                };
-                let setting = format!("{place}, δ = {delta:e} h, {enrichment}");
-                match solve_scene(&scene(zc, xf0 + delta * h, radius), 0, None, false) {
-                    Ok(r) => {
-                        let kappa = condition_estimate(&r.model, &r.d);
-                        let (heaviside, tip) = r
-                            .model
-                            .cut
-                            .as_ref()
-                            .map_or((0, 0), |c| (c.n_heaviside(), c.n_tip()));
-                        rows.push(row(
-                            TEST,
-                            setting,
-                            format!(
+    for (element, mark) in [("tet4", ""), ("tet10", ", tet10")] {
+        for (place, zc0, xf0) in [("node line", 1.0, 0.5), ("face", 1.125, 0.5)] {
+            for (enrichment, radius) in [("topological", ""), ("R = 0.3", "tip_radius = 0.3")] {
+                for delta in [1e-3, 1e-6, 1e-9, 1e-12] {
+                    let t = Instant::now();
+                    let zc = if place == "node line" {
+                        zc0 + delta * h
+                    } else {
+                        zc0
+                    };
+                    let setting = format!("{place}, δ = {delta:e} h, {enrichment}{mark}");
+                    match solve_scene(&scene(zc, xf0 + delta * h, radius, element), 0, None, false)
+                    {
+                        Ok(r) => {
+                            let kappa = condition_estimate(&r.model, &r.d);
+                            let (heaviside, tip) = r
+                                .model
+                                .cut
+                                .as_ref()
+                                .map_or((0, 0), |c| (c.n_heaviside(), c.n_tip()));
+                            rows.push(row(
+                                TEST,
+                                setting,
+                                format!(
                                 "{tip} tip, {heaviside} Heaviside nodes; residual {:.1e}; κ ≈ {}",
                                 r.residual,
                                 fmt_kappa(kappa)
                             ),
-                            criterion,
-                            finite(&r) && r.residual <= 1e-8,
-                            t,
-                        ));
+                                criterion,
+                                finite(&r) && r.residual <= 1e-8,
+                                t,
+                            ));
+                        }
+                        Err(e) => rows.push(failed(TEST, setting, criterion, &e, t)),
                     }
-                    Err(e) => rows.push(failed(TEST, setting, criterion, &e, t)),
                 }
             }
         }
