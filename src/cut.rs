@@ -389,7 +389,7 @@ impl Blending {
     ///
     /// Not on Tet10: there the ring needs all four branch functions (F₃
     /// held at zero on it, as everywhere a body's boundary does not
-    /// prescribe it, the exact field's energy error was 1.07–1.47× *above*
+    /// prescribe it, the exact field's energy error was 1.03–1.47× *above*
     /// no ramp at n = 3 … 8), and with all four only one node's gauge
     /// pins their dependence (conditioning 1e8–1e9: [`crate::model::ring_free_branches`]).
     /// Not on the topological tip: the ramp lowers its L2 error 1.5× at

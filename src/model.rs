@@ -2438,7 +2438,7 @@ const ALL_BRANCHES: [usize; N_BRANCH] = [0, 1, 2, 3];
 ///
 /// Tet10: all four (the ramp is an option there, not a case's default:
 /// [`crate::cut::Blending::for_cut`]). Without F₃ its energy error was
-/// 1.07–1.47× above no ramp at n = 3 … 8 (L2 6.5e-3 against 4.6e-3 at
+/// 1.03–1.47× above no ramp at n = 3 … 8 (L2 6.5e-3 against 4.6e-3 at
 /// n = 3), without F₂ and F₃ worse; with all four it is 1.1–1.3× below,
 /// but only the point gauge pins their dependence.
 pub fn ring_free_branches(kind: ElementKind) -> &'static [usize] {
