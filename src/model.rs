@@ -821,10 +821,7 @@ impl ElementShapes {
         };
         let tip_branches = tip
             .iter()
-            .map(|&(k, _)| match cut.ramp.get(conn[k]) {
-                Some(false) => ring_free_branches(mesh.kind),
-                _ => &ALL_BRANCHES,
-            })
+            .map(|&(k, _)| tip_branches(mesh.kind, cut, conn[k]))
             .collect();
         let (phi, psi) = cut.vertex_levels(mesh, e);
         let grad_phi = (0..4).fold(Vector3::zeros(), |s, k| s + dl[k] * phi[k]);
@@ -2423,6 +2420,15 @@ fn heaviside_held(
 
 /// Every branch function of a tip node.
 const ALL_BRANCHES: [usize; N_BRANCH] = [0, 1, 2, 3];
+
+/// The branch functions the elements of tip node `i` hold: on the ramp's
+/// ring [`ring_free_branches`], elsewhere all four.
+pub fn tip_branches(kind: ElementKind, cut: &CutSetup, i: usize) -> &'static [usize] {
+    match cut.ramp.get(i) {
+        Some(false) => ring_free_branches(kind),
+        _ => &ALL_BRANCHES,
+    }
+}
 
 /// The branch functions a ring node (a tip node outside I: a blending
 /// element's other vertex, R = 0 there) carries with the ramp; the others

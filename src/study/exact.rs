@@ -505,15 +505,10 @@ impl WilliamsFront {
 }
 
 /// The branch functions of tip node `i` held at zero: on the ramp's ring,
-/// those outside [`crate::model::ring_free_branches`]; none elsewhere.
+/// those outside [`crate::model::tip_branches`]; none elsewhere.
 fn held_branches(mesh: &TetMesh, cut: &CutSetup, i: usize) -> Vec<usize> {
-    match cut.ramp.get(i) {
-        Some(false) => {
-            let free = crate::model::ring_free_branches(mesh.kind);
-            (0..N_BRANCH).filter(|k| !free.contains(k)).collect()
-        }
-        _ => Vec::new(),
-    }
+    let free = crate::model::tip_branches(mesh.kind, cut, i);
+    (0..N_BRANCH).filter(|k| !free.contains(k)).collect()
 }
 
 /// Per node, the vertices of the edge it is the mid-node of (Tet10).
