@@ -25,7 +25,7 @@
 //!   ψ = (side − H_i)/2 ≠ 0.
 
 use crate::front;
-use crate::mesh::{tet_volume, ElementKind, TetMesh, TET_FACES};
+use crate::mesh::{tet_volume, ElementKind, TetMesh, TET10_EDGES, TET_FACES};
 use nalgebra::{Point3, Vector3};
 
 /// Default snapping distance, relative to the element size: cuts closer than
@@ -453,10 +453,15 @@ pub fn setup_cut(mesh: &TetMesh, cuts: &[CutInput<'_>]) -> Result<CutSetup, CutE
         .enumerate()
         .map(|(k, cut)| setup_one(mesh, cut, k))
         .collect::<Result<Vec<_>, _>>()?;
-    if setups.len() == 1 {
-        return Ok(setups.pop().expect("one setup"));
+    let mut setup = if setups.len() == 1 {
+        setups.pop().expect("one setup")
+    } else {
+        merge(mesh, setups)?
+    };
+    if mesh.kind == ElementKind::Tet10 {
+        drop_sliver_vertices(mesh, &mut setup);
     }
-    merge(mesh, setups)
+    Ok(setup)
 }
 
 /// Several cuts that neither intersect nor share an element or node of
@@ -614,6 +619,147 @@ fn merge(mesh: &TetMesh, setups: Vec<CutSetup>) -> Result<CutSetup, CutError> {
             .fold((0, 0), |(a, b), s| (a + s.measured.0, b + s.measured.1)),
         tip_levels,
     })
+}
+
+/// Tet10: how far from a vertex c (in its barycentric λ_c) the cut may
+/// leave all of c's shifted Heaviside function, in every element, for c to
+/// go without it ([`drop_sliver_vertices`]).
+pub const SLIVER_LAMBDA: f64 = 0.01;
+
+/// Tet10: a vertex c whose shifted Heaviside function (H − H_c) N_c lives
+/// only in slivers, where λ_c ≤ [`SLIVER_LAMBDA`] in every cut element of
+/// its star, loses it, where that joins no two parts of the body.
+///
+/// There N_c = λ_c (2λ_c − 1) ≈ −λ_c, and the mid-nodes of the edges from
+/// c, 4 λ_c λ_j, sum to 4 λ_c (1 − λ_c) ≈ −4 N_c: the vertex's function is
+/// the mid-nodes' to first order in λ_c, and the system's Jacobi-scaled
+/// condition grows like 1/λ_c² (the `front-near` stress rows, whose lifted
+/// faces leave slivers of 1e-4 h: 2.8e8–9.7e9, now 5.7e3–3.1e4). Only
+/// where those mid-nodes carry their own (enriched, on c's side): they then
+/// span what c's function did but its O(λ_c²) part, which is what the drop
+/// changes. That part couples c's side to the sliver's: within one part of
+/// the body (the sides meet round a front) a change of the order of the
+/// discretisation's (the exact-solution study's Tet10 rows with a front:
+/// L2 and energy within 6e-8 relative), across a through cut a force
+/// between two parts, so a vertex whose sliver lies in another part (by
+/// [`regions_joined`]) keeps its function, and there the condition still
+/// grows like 1/λ_c² (a plane δh from a node layer through a bar: 2e6,
+/// 2e8, 2e14 at δ = 1e-2, 1e-3, 1e-6; not positive definite at 1e-9 with
+/// snapping off). A bound of 0.05 moved the through cut's energy error by
+/// 5 % (without the part rule), 0.01 by 8e-4. Tet4 has no such pairs (its
+/// three other vertices' functions are independent on any sliver).
+fn drop_sliver_vertices(mesh: &TetMesh, setup: &mut CutSetup) {
+    let (regions, mut parent) = regions_joined(mesh, Some(setup));
+    let mut region_start = vec![0; mesh.n_elements() + 1];
+    for &(e, _) in &regions {
+        region_start[e + 1] += 1;
+    }
+    for e in 0..mesh.n_elements() {
+        region_start[e + 1] += region_start[e];
+    }
+    let region =
+        |e: usize, side: i8| (region_start[e]..region_start[e + 1]).find(|&r| regions[r].1 == side);
+    let n = mesh.n_nodes();
+    let candidate =
+        |c: usize| setup.enriched[c].is_some() && setup.tip[c].is_none() && setup.phi[c] != 0.0;
+    let (mut thin, mut seen) = (vec![true; n], vec![false; n]);
+    for e in 0..mesh.n_elements() {
+        if !matches!(setup.elements[e], ElementCut::Cut { .. }) {
+            continue;
+        }
+        let nodes = mesh.element(e);
+        for a in 0..4 {
+            let c = nodes[a];
+            if !candidate(c) || !thin[c] {
+                continue;
+            }
+            seen[c] = true;
+            let (phi, side) = (&setup.phi, setup.node_side[c]);
+            // The largest λ_c where the cut leaves c's other side: on the
+            // edges from c to the vertices across the plane.
+            let lambda = nodes[..4]
+                .iter()
+                .filter(|&&j| phi[j] * phi[c] < 0.0)
+                .map(|&j| phi[j].abs() / (phi[c].abs() + phi[j].abs()))
+                .fold(0.0, f64::max);
+            let covered = TET10_EDGES.iter().enumerate().all(|(k, &(p, q))| {
+                let mid = nodes[4 + k];
+                (p != a && q != a)
+                    || (setup.enriched[mid].is_some() && setup.node_side[mid] == side)
+            });
+            let one_part = match (region(e, side), region(e, -side)) {
+                (Some(r), Some(s)) => find_root(&mut parent, r) == find_root(&mut parent, s),
+                _ => false,
+            };
+            thin[c] = lambda <= SLIVER_LAMBDA && covered && one_part;
+        }
+    }
+    let mut n_enriched = 0;
+    for c in 0..n {
+        if setup.enriched[c].is_some() {
+            setup.enriched[c] = if seen[c] && thin[c] {
+                None
+            } else {
+                n_enriched += 1;
+                Some(n_enriched - 1)
+            };
+        }
+    }
+    setup.n_enriched = n_enriched;
+}
+
+/// The body's regions ((element, side) pairs: both sides of a cut
+/// element, the one side of an element the cut touches, side 0 elsewhere)
+/// and a union-find forest over them ([`find_root`]): regions joined where
+/// they share a node and see the same DOFs there (ψ of the node in the
+/// region), so that a root is a part of the body.
+pub(crate) fn regions_joined(
+    mesh: &TetMesh,
+    cut: Option<&CutSetup>,
+) -> (Vec<(usize, i8)>, Vec<usize>) {
+    let mut regions: Vec<(usize, i8)> = Vec::new();
+    for e in 0..mesh.n_elements() {
+        match cut.map(|c| &c.elements[e]) {
+            Some(ElementCut::Cut { .. }) => {
+                regions.push((e, 1));
+                regions.push((e, -1));
+            }
+            Some(ElementCut::Touched { side }) => regions.push((e, *side)),
+            _ => regions.push((e, 0)),
+        }
+    }
+    let mut parent: Vec<usize> = (0..regions.len()).collect();
+    // Key (node, ψ in the region) → first region seen with it.
+    let mut first: std::collections::HashMap<(usize, i8), usize> = std::collections::HashMap::new();
+    for (r, &(e, side)) in regions.iter().enumerate() {
+        for &node in mesh.element(e) {
+            let p = match cut {
+                Some(c) if side != 0 && c.enriched[node].is_some() => {
+                    psi(side, c.node_side[node]) as i8
+                }
+                _ => 0,
+            };
+            match first.entry((node, p)) {
+                std::collections::hash_map::Entry::Occupied(o) => {
+                    let (a, b) = (find_root(&mut parent, r), find_root(&mut parent, *o.get()));
+                    parent[a] = b;
+                }
+                std::collections::hash_map::Entry::Vacant(v) => {
+                    v.insert(r);
+                }
+            }
+        }
+    }
+    (regions, parent)
+}
+
+/// The root of region `i` in the union-find forest `p` (paths halved).
+pub(crate) fn find_root(p: &mut [usize], mut i: usize) -> usize {
+    while p[i] != i {
+        p[i] = p[p[i]];
+        i = p[i];
+    }
+    i
 }
 
 /// How far [`lift_faces_the_front_crosses`] moves nodes off the surface,

@@ -13,7 +13,7 @@
 //! numbered nodes first, then enriched nodes (the vector [u₁…u_N a₁…a_Nenr] of
 //! eq. 74). Dirichlet DOFs are eliminated: only free DOFs enter the matrix.
 
-use crate::cut::{psi, CutSetup, ElementCut};
+use crate::cut::{find_root, psi, regions_joined, CutSetup, ElementCut};
 use crate::element::{barycentric_gradients, shape_gradients, shape_values};
 use crate::front::{self, N_BRANCH};
 use crate::material::{Lame, Material};
@@ -3008,57 +3008,6 @@ impl Model {
 
 // ---------------------------------------------------------------------------
 // A cut event: the model of a grown cut from the model of the old one.
-
-/// The body's regions ((element, side) pairs: both sides of a cut
-/// element, the one side of an element the cut touches, side 0 elsewhere)
-/// and a union-find forest over them ([`find_root`]): regions joined where
-/// they share a node and see the same DOFs there (ψ of the node in the
-/// region), so that a root is a part of the body.
-fn regions_joined(mesh: &TetMesh, cut: Option<&CutSetup>) -> (Vec<(usize, i8)>, Vec<usize>) {
-    let mut regions: Vec<(usize, i8)> = Vec::new();
-    for e in 0..mesh.n_elements() {
-        match cut.map(|c| &c.elements[e]) {
-            Some(ElementCut::Cut { .. }) => {
-                regions.push((e, 1));
-                regions.push((e, -1));
-            }
-            Some(ElementCut::Touched { side }) => regions.push((e, *side)),
-            _ => regions.push((e, 0)),
-        }
-    }
-    let mut parent: Vec<usize> = (0..regions.len()).collect();
-    // Key (node, ψ in the region) → first region seen with it.
-    let mut first: std::collections::HashMap<(usize, i8), usize> = std::collections::HashMap::new();
-    for (r, &(e, side)) in regions.iter().enumerate() {
-        for &node in mesh.element(e) {
-            let p = match cut {
-                Some(c) if side != 0 && c.enriched[node].is_some() => {
-                    psi(side, c.node_side[node]) as i8
-                }
-                _ => 0,
-            };
-            match first.entry((node, p)) {
-                std::collections::hash_map::Entry::Occupied(o) => {
-                    let (a, b) = (find_root(&mut parent, r), find_root(&mut parent, *o.get()));
-                    parent[a] = b;
-                }
-                std::collections::hash_map::Entry::Vacant(v) => {
-                    v.insert(r);
-                }
-            }
-        }
-    }
-    (regions, parent)
-}
-
-/// The root of region `i` in the union-find forest `p` (paths halved).
-fn find_root(p: &mut [usize], mut i: usize) -> usize {
-    while p[i] != i {
-        p[i] = p[p[i]];
-        i = p[i];
-    }
-    i
-}
 
 /// Per element, whether a side of it under [`SMALL_CUT_SIDE`] of its volume
 /// takes the rotation of its other side ([`Integrator::standard_block`]):
