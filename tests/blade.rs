@@ -2910,3 +2910,86 @@ fn small_sides_turn_with_the_other_side_only_while_the_blade_has_not_parted_them
     assert_eq!(seen.last().copied(), Some(0));
     assert!(run.state.d.iter().all(|x| x.is_finite()));
 }
+
+/// A Tet10 blade sweeping the plane z = h + 1e-3 h through a cube, its
+/// front extended or tip-enriched: while the cut is partial the vertices
+/// above the layer, whose Heaviside functions live only in the slivers
+/// beside it, go without them (`cut::SLIVER_LAMBDA`; 4, 8, 12 of them as
+/// the blade advances, counted in a scratch run), and once it is through
+/// they take them again (dropping them would join the two parts). Each
+/// event's update equals a model built whole.
+#[test]
+fn a_tet10_blade_beside_a_node_layer_updates_its_sliver_vertices_as_a_full_build_does() {
+    use xfem_cut::cut::FrontMode;
+    let mesh = xfem_cut::mesh::box_mesh(Point3::origin(), Point3::new(1.0, 1.0, 1.0), [3, 3, 3])
+        .to_tet10();
+    let h = 1.0 / 3.0;
+    for front in [FrontMode::Extend, FrontMode::Tip] {
+        for delta in [1e-3] {
+            // The plane z = 1/3 + δh, swept along x by an edge along y.
+            let z = h + delta * h;
+            let a = Point3::new(-0.2, -0.5, z);
+            let cuts = CutSet {
+                items: vec![CutItem::Blade(
+                    Blade::straight(
+                        0,
+                        a,
+                        a + Vector3::new(0.0, 2.0, 0.0),
+                        Vector3::new(1.5, 0.0, 0.0),
+                        0.0,
+                        1.0,
+                    )
+                    .unwrap(),
+                )],
+                snap: DEFAULT_SNAP,
+                front,
+                options: Vec::new(),
+            };
+            for formulation in [Formulation::Linear, Formulation::Corotational] {
+                let build = |cut| {
+                    let fixed: Vec<_> = (0..mesh.n_nodes())
+                        .filter(|&i| mesh.nodes[i].z == 0.0 || mesh.nodes[i].z == 1.0)
+                        .map(|i| (i, [Some(0.0); 3]))
+                        .collect();
+                    xfem_cut::model::Model::build(xfem_cut::model::ModelInput {
+                        mesh: mesh.clone(),
+                        material: xfem_cut::material::Material {
+                            young: 1e4,
+                            poisson: 0.3,
+                            density: 1000.0,
+                        },
+                        formulation,
+                        cut,
+                        fixed,
+                        gravity: Some(Vector3::new(3.0, -9.81, 2.0)),
+                        body_force: None,
+                        tractions: &[],
+                        need_mass: true,
+                    })
+                    .unwrap()
+                };
+                let mut inc = build(None);
+                let mut worst = [0.0f64; 5];
+                let mut ns = Vec::new();
+                for k in 1..=20 {
+                    let s = cuts.setup_at(&mesh, 0.05 * k as f64).unwrap();
+                    if xfem_cut::blade::same_setup(inc.cut.as_ref(), s.as_ref()) {
+                        continue;
+                    }
+                    ns.push(s.as_ref().map_or(0, |c| c.n_enriched));
+                    let (next, _) = inc.update_cut(s.clone()).unwrap();
+                    let full = build(s);
+                    let diff = model_difference(&next, &full);
+                    for (w, d) in worst.iter_mut().zip(diff) {
+                        *w = w.max(d);
+                    }
+                    inc = next;
+                }
+                println!("{front:?} {formulation:?}: enriched {ns:?}; worst {worst:?}");
+                for w in worst {
+                    assert!(w <= 1e-13, "{worst:?}");
+                }
+            }
+        }
+    }
+}
