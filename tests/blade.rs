@@ -2842,6 +2842,34 @@ rayleigh = {{ mass = 5.0, stiffness = {stiffness:?} }}
     }
 }
 
+/// A Tet10 (or Tet4) `mesh` of the unit cube, clamped at z = 0 and z = 1,
+/// soft (E = 1e4, ν = 0.3, ρ = 1000), gravity oblique, with mass.
+fn clamped_cube(
+    mesh: &xfem_cut::mesh::TetMesh,
+    formulation: Formulation,
+    cut: Option<xfem_cut::cut::CutSetup>,
+) -> Result<xfem_cut::model::Model, xfem_cut::model::ModelError> {
+    let fixed: Vec<_> = (0..mesh.n_nodes())
+        .filter(|&i| mesh.nodes[i].z == 0.0 || mesh.nodes[i].z == 1.0)
+        .map(|i| (i, [Some(0.0); 3]))
+        .collect();
+    xfem_cut::model::Model::build(xfem_cut::model::ModelInput {
+        mesh: mesh.clone(),
+        material: xfem_cut::material::Material {
+            young: 1e4,
+            poisson: 0.3,
+            density: 1000.0,
+        },
+        formulation,
+        cut,
+        fixed,
+        gravity: Some(Vector3::new(3.0, -9.81, 2.0)),
+        body_force: None,
+        tractions: &[],
+        need_mass: true,
+    })
+}
+
 /// A blade sweeping the plane x + y + z = 1.5 + δ (δ = 1e-2 h) through a
 /// Tet10 cube, corotational: while its cut ends inside the body, the
 /// corners it leaves on the nodes of that layer turn with their elements'
@@ -2868,27 +2896,7 @@ fn small_sides_turn_with_the_other_side_only_while_the_blade_has_not_parted_them
         front: xfem_cut::cut::FrontMode::Extend,
         options: Vec::new(),
     };
-    let build = |cut| {
-        let fixed: Vec<_> = (0..mesh.n_nodes())
-            .filter(|&i| mesh.nodes[i].z == 0.0 || mesh.nodes[i].z == 1.0)
-            .map(|i| (i, [Some(0.0); 3]))
-            .collect();
-        xfem_cut::model::Model::build(xfem_cut::model::ModelInput {
-            mesh: mesh.clone(),
-            material: xfem_cut::material::Material {
-                young: 1e4,
-                poisson: 0.3,
-                density: 1000.0,
-            },
-            formulation: Formulation::Corotational,
-            cut,
-            fixed,
-            gravity: Some(Vector3::new(3.0, -9.81, 2.0)),
-            body_force: None,
-            tractions: &[],
-            need_mass: true,
-        })
-    };
+    let build = |cut| clamped_cube(&mesh, Formulation::Corotational, cut);
     let opts = DynamicOptions {
         dt: 0.01,
         steps: 14,
@@ -2946,28 +2954,7 @@ fn a_tet10_blade_beside_a_node_layer_updates_its_sliver_vertices_as_a_full_build
                 options: Vec::new(),
             };
             for formulation in [Formulation::Linear, Formulation::Corotational] {
-                let build = |cut| {
-                    let fixed: Vec<_> = (0..mesh.n_nodes())
-                        .filter(|&i| mesh.nodes[i].z == 0.0 || mesh.nodes[i].z == 1.0)
-                        .map(|i| (i, [Some(0.0); 3]))
-                        .collect();
-                    xfem_cut::model::Model::build(xfem_cut::model::ModelInput {
-                        mesh: mesh.clone(),
-                        material: xfem_cut::material::Material {
-                            young: 1e4,
-                            poisson: 0.3,
-                            density: 1000.0,
-                        },
-                        formulation,
-                        cut,
-                        fixed,
-                        gravity: Some(Vector3::new(3.0, -9.81, 2.0)),
-                        body_force: None,
-                        tractions: &[],
-                        need_mass: true,
-                    })
-                    .unwrap()
-                };
+                let build = |cut| clamped_cube(&mesh, formulation, cut).unwrap();
                 let mut inc = build(None);
                 let mut worst = [0.0f64; 5];
                 let mut ns = Vec::new();
