@@ -649,20 +649,12 @@ pub const SLIVER_LAMBDA: f64 = 0.01;
 /// 5 % (without the part rule), 0.01 by 8e-4. Tet4 has no such pairs (its
 /// three other vertices' functions are independent on any sliver).
 fn drop_sliver_vertices(mesh: &TetMesh, setup: &mut CutSetup) {
-    let (regions, mut parent) = regions_joined(mesh, Some(setup));
-    let mut region_start = vec![0; mesh.n_elements() + 1];
-    for &(e, _) in &regions {
-        region_start[e + 1] += 1;
-    }
-    for e in 0..mesh.n_elements() {
-        region_start[e + 1] += region_start[e];
-    }
-    let region =
-        |e: usize, side: i8| (region_start[e]..region_start[e + 1]).find(|&r| regions[r].1 == side);
     let n = mesh.n_nodes();
     let candidate =
         |c: usize| setup.enriched[c].is_some() && setup.tip[c].is_none() && setup.phi[c] != 0.0;
     let (mut thin, mut seen) = (vec![true; n], vec![false; n]);
+    // The (vertex, element) pairs that passed, for the part rule below.
+    let mut pairs = Vec::new();
     for e in 0..mesh.n_elements() {
         if !matches!(setup.elements[e], ElementCut::Cut { .. }) {
             continue;
@@ -687,12 +679,34 @@ fn drop_sliver_vertices(mesh: &TetMesh, setup: &mut CutSetup) {
                 (p != a && q != a)
                     || (setup.enriched[mid].is_some() && setup.node_side[mid] == side)
             });
-            let one_part = match (region(e, side), region(e, -side)) {
-                (Some(r), Some(s)) => find_root(&mut parent, r) == find_root(&mut parent, s),
-                _ => false,
-            };
-            thin[c] = lambda <= SLIVER_LAMBDA && covered && one_part;
+            thin[c] = lambda <= SLIVER_LAMBDA && covered;
+            pairs.push((c, e));
         }
+    }
+    if !(0..n).any(|c| seen[c] && thin[c]) {
+        return;
+    }
+    // The part rule, only where a vertex passed the others (the regions
+    // cost a hash of every element's nodes).
+    let (regions, mut parent) = regions_joined(mesh, Some(setup));
+    let mut region_start = vec![0; mesh.n_elements() + 1];
+    for &(e, _) in &regions {
+        region_start[e + 1] += 1;
+    }
+    for e in 0..mesh.n_elements() {
+        region_start[e + 1] += region_start[e];
+    }
+    let region =
+        |e: usize, side: i8| (region_start[e]..region_start[e + 1]).find(|&r| regions[r].1 == side);
+    for (c, e) in pairs {
+        if !thin[c] {
+            continue;
+        }
+        let side = setup.node_side[c];
+        thin[c] = match (region(e, side), region(e, -side)) {
+            (Some(r), Some(s)) => find_root(&mut parent, r) == find_root(&mut parent, s),
+            _ => false,
+        };
     }
     let mut n_enriched = 0;
     for c in 0..n {
