@@ -18,11 +18,11 @@
 //! `steps=N` for N steps instead of 20).
 //!
 //! `cargo run --release --example step_profile` (all three), or
-//! `-- 6 12 24 [tet10] [tip|extend] [radius=R [noramp]] [steps=N]` for one
+//! `-- 6 12 24 [tet10] [tip|extend] [radius=R [ramp]] [steps=N]` for one
 //! beam (`tip`: the seed's cut shortened to x = 0.0137, its front inside
 //! elements and tip-enriched, as in the `tip` group of benches/cut.rs,
-//! within R of the front with `radius=R`, its blending elements ramped as a
-//! case's are unless `noramp`; `extend`: the same cut extended to the faces
+//! within R of the front with `radius=R`, its blending elements not ramped,
+//! as a case's, unless `ramp`; `extend`: the same cut extended to the faces
 //! of its front elements, what that group compares it with).
 use nalgebra::{Point3, Vector3};
 use std::hint::black_box;
@@ -71,10 +71,10 @@ fn profile(div: [usize; 3], tet10: bool, front: Option<&str>) {
             CutInput::extend(&patch, DEFAULT_SNAP)
         } else {
             // `radius=R`: geometric, with the blending a case's cut takes
-            // (the ramp), or none with `noramp`.
+            // (none), or the ramp with `ramp`.
             let radius = radius();
-            let blending = if std::env::args().any(|a| a == "noramp") {
-                xfem_cut::cut::Blending::None
+            let blending = if std::env::args().any(|a| a == "ramp") {
+                xfem_cut::cut::Blending::Ramp
             } else {
                 xfem_cut::cut::Blending::for_cut(xfem_cut::cut::FrontMode::Tip, radius, mesh.kind)
             };

@@ -395,7 +395,7 @@ impl Blending {
     /// ring instead of F₀, F₁ gave the same (stretch L4: 6.79 %). Why, is
     /// not found. Its cost: the ring's tip blocks (at 1k Tet4 with R under
     /// an element, 84 tip nodes against 21: `examples/step_profile.rs 3 6
-    /// 10 tip radius=0.006 [noramp]`, 1.5–2× the step on a loaded machine).
+    /// 10 tip radius=0.006 [ramp]`, 1.5–2× the step on a loaded machine).
     ///
     /// On Tet10 the ring needs all four branch functions (F₃ held at zero on
     /// it, the exact field's energy error was 1.03–1.47× *above* no ramp at
