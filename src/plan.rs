@@ -91,7 +91,7 @@ impl Plan {
                 .cuts
                 .iter()
                 .any(|c| matches!(c.geometry, crate::scene::CutGeometry::Blade { .. }));
-        // Geometric tip enrichment takes the ramp in its blending elements.
+        // Blending elements ramped where `Blending::for_cut` says so (no case today).
         let ramped = scene.cuts.iter().any(|c| {
             crate::cut::Blending::for_cut(c.options().front, c.tip_radius, model.mesh.kind)
                 == crate::cut::Blending::Ramp
