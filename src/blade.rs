@@ -452,6 +452,10 @@ impl CutSurface for GrowingPatch {
         self.part.overlaps(poly, reach)
     }
 
+    fn touch(&self) -> f64 {
+        self.part.touch()
+    }
+
     fn contains(&self, x: &Point3<f64>, tol: f64) -> bool {
         self.part.contains(x, tol)
     }

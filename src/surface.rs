@@ -22,7 +22,7 @@
 //! - `boundary` is the boundary edges of the triangle mesh (edges of one
 //!   triangle): the front, where inside the body.
 
-use crate::cut::CutSurface;
+use crate::cut::{CutSurface, PATCH_TOUCH};
 use nalgebra::{Point3, Vector3};
 use rstar::{PointDistance, RTree, RTreeObject, AABB};
 use std::collections::HashMap;
@@ -255,6 +255,9 @@ pub struct TriangleSurface {
     /// Per boundary vertex: its boundary edges.
     boundary_at: HashMap<usize, Vec<(usize, usize)>>,
     tree: RTree<Tri>,
+    /// [`CutSurface::touch`]: the largest triangle's, from its two edges
+    /// at its first vertex (the axes of its coordinates in `overlaps`).
+    touch: f64,
 }
 
 impl TriangleSurface {
@@ -356,6 +359,14 @@ impl TriangleSurface {
                 })
                 .collect(),
         );
+        let touch = triangles
+            .iter()
+            .map(|t| {
+                let a = vertices[t[0]];
+                (vertices[t[1]] - a).norm() + (vertices[t[2]] - a).norm()
+            })
+            .fold(0.0, f64::max)
+            * PATCH_TOUCH;
         Ok(TriangleSurface {
             vertices,
             triangles,
@@ -369,6 +380,7 @@ impl TriangleSurface {
             side_neighbours,
             boundary_at,
             tree,
+            touch,
         })
     }
 
@@ -528,6 +540,10 @@ impl CutSurface for TriangleSurface {
         )
     }
 
+    fn touch(&self) -> f64 {
+        self.touch
+    }
+
     fn overlaps(&self, poly: &[Point3<f64>], reach: f64) -> bool {
         if poly.is_empty() {
             return false;
@@ -623,6 +639,9 @@ impl CutSurface for EveryNode<'_> {
     fn overlaps(&self, poly: &[Point3<f64>], reach: f64) -> bool {
         self.0.overlaps(poly, reach)
     }
+    fn touch(&self) -> f64 {
+        self.0.touch()
+    }
     fn contains(&self, x: &Point3<f64>, tol: f64) -> bool {
         self.0.contains(x, tol)
     }
@@ -641,7 +660,7 @@ impl CutSurface for EveryNode<'_> {
 /// (0,0), (1,0), (0,1) by more than a 1e-9 sliver: separating axes, as
 /// [`crate::cut::PlanarPatch`] does for its square.
 fn convex_overlaps_unit_triangle(pts: &[(f64, f64)]) -> bool {
-    let tol = 1e-9;
+    let tol = PATCH_TOUCH;
     let tri = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0)];
     let span = |axis: (f64, f64), set: &[(f64, f64)]| {
         set.iter()
