@@ -448,12 +448,8 @@ impl CutSurface for GrowingPatch {
         self.full.level_set(x)
     }
 
-    fn overlaps(&self, poly: &[Point3<f64>], reach: f64) -> bool {
-        self.part.overlaps(poly, reach)
-    }
-
-    fn touch(&self) -> f64 {
-        self.part.touch()
+    fn overlaps(&self, poly: &[Point3<f64>], reach: f64, touch: f64) -> bool {
+        self.part.overlaps(poly, reach, touch)
     }
 
     fn contains(&self, x: &Point3<f64>, tol: f64) -> bool {

@@ -35,9 +35,66 @@ use nalgebra::{Point3, Vector3};
 /// discretisation error.
 pub const DEFAULT_SNAP: f64 = 1e-4;
 
-/// How much of a section, in a patch's or a triangle's own coordinates, has
-/// to overlap it to count ([`CutSurface::overlaps`]).
-pub const PATCH_TOUCH: f64 = 1e-9;
+/// The length under which a section's overlap with a surface is touching
+/// ([`CutSurface::overlaps`]), relative to the mesh's largest element: one
+/// length for every surface and every element, so that a patch and the
+/// same patch as triangles decide alike (in their own (s, t) coordinates
+/// they did not: a patch's edge and a triangle's hypotenuse measure an
+/// overlap differently, and an extended front 1e-8 h beyond a node layer
+/// cut a row of elements more as a patch), and so that a front a touch
+/// from element faces is held by the elements behind it (`setup_one`).
+pub const SECTION_TOUCH: f64 = 1e-9;
+
+/// Orthonormal coordinates in a plane: the origin, the unit `e1`, and `e2`
+/// (in the plane, normal to `e1`, on the side of `toward`).
+pub(crate) struct PlaneFrame {
+    origin: Point3<f64>,
+    f1: Vector3<f64>,
+    f2: Vector3<f64>,
+}
+
+impl PlaneFrame {
+    pub(crate) fn new(origin: Point3<f64>, e1: &Vector3<f64>, toward: &Vector3<f64>) -> PlaneFrame {
+        let f1 = e1.normalize();
+        let f2 = (toward - f1 * f1.dot(toward)).normalize();
+        PlaneFrame { origin, f1, f2 }
+    }
+
+    pub(crate) fn at(&self, x: &Point3<f64>) -> (f64, f64) {
+        let r = x - self.origin;
+        (r.dot(&self.f1), r.dot(&self.f2))
+    }
+}
+
+/// Whether the convex polygons `a` and `b` (in one plane's orthonormal
+/// coordinates) overlap by more than `touch`: no edge normal of either
+/// separates them with a gap above −`touch`.
+pub(crate) fn convex_overlap(a: &[(f64, f64)], b: &[(f64, f64)], touch: f64) -> bool {
+    let span = |axis: (f64, f64), set: &[(f64, f64)]| {
+        set.iter()
+            .map(|p| p.0 * axis.0 + p.1 * axis.1)
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+                (l.min(v), h.max(v))
+            })
+    };
+    let separates = |axis: (f64, f64)| {
+        let (amin, amax) = span(axis, a);
+        let (bmin, bmax) = span(axis, b);
+        amax <= bmin + touch || bmax <= amin + touch
+    };
+    for set in [a, b] {
+        let n = set.len();
+        for i in 0..n {
+            let (p, q) = (set[i], set[(i + 1) % n]);
+            let (x, y) = (-(q.1 - p.1), q.0 - p.0);
+            let norm = x.hypot(y);
+            if norm > 0.0 && separates((x / norm, y / norm)) {
+                return false;
+            }
+        }
+    }
+    true
+}
 
 /// A planar cut patch: origin + s u + t v, s, t ∈ [0, 1]; normal n = u × v / |u × v|.
 #[derive(Debug, Clone)]
@@ -54,11 +111,9 @@ pub trait CutSurface: Send + Sync {
     /// Whether the convex section polygon `poly` overlaps the patch. Its
     /// points lie on the interpolated, snapped surface: up to `reach` off
     /// the surface itself.
-    fn overlaps(&self, poly: &[Point3<f64>], reach: f64) -> bool;
-    /// The length under which [`CutSurface::overlaps`] takes an overlap
-    /// for touching (a bound: its tolerance is relative to the surface's
-    /// own coordinates).
-    fn touch(&self) -> f64;
+    /// An overlap thinner than `touch` (a length, the same for every
+    /// surface: [`SECTION_TOUCH`] of the largest element) is touching, not overlapping.
+    fn overlaps(&self, poly: &[Point3<f64>], reach: f64, touch: f64) -> bool;
     /// Whether `x` (on the surface) lies in the patch, with relative tolerance `tol`.
     fn contains(&self, x: &Point3<f64>, tol: f64) -> bool;
     /// The surface's boundary as segments; the part inside the body is the crack front.
@@ -121,58 +176,16 @@ impl CutSurface for PlanarPatch {
         self.normal().dot(&(x - self.origin))
     }
 
-    fn touch(&self) -> f64 {
-        PATCH_TOUCH * (self.u.norm() + self.v.norm())
-    }
-
-    fn overlaps(&self, poly: &[Point3<f64>], _reach: f64) -> bool {
-        // Separating axes of two convex polygons in (s, t): the square's axes, then the polygon's edge normals.
-        // Touching (overlap thinner than tol) does not count: a section that only
-        // meets the crack front line is not cut.
-        let tol = 1e-9;
-        let pts: Vec<(f64, f64)> = poly.iter().map(|p| self.coordinates(p)).collect();
-        let (mut smin, mut smax, mut tmin, mut tmax) = (
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-        );
-        for &(s, t) in &pts {
-            smin = smin.min(s);
-            smax = smax.max(s);
-            tmin = tmin.min(t);
-            tmax = tmax.max(t);
-        }
-        if smax <= tol || smin >= 1.0 - tol || tmax <= tol || tmin >= 1.0 - tol {
-            return false;
-        }
-        let square = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)];
-        let n = pts.len();
-        for i in 0..n {
-            let (a, b) = (pts[i], pts[(i + 1) % n]);
-            let axis = (-(b.1 - a.1), b.0 - a.0);
-            if axis.0 == 0.0 && axis.1 == 0.0 {
-                continue;
-            }
-            let proj = |p: &(f64, f64)| p.0 * axis.0 + p.1 * axis.1;
-            let (pmin, pmax) = pts
-                .iter()
-                .map(proj)
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
-                    (l.min(v), h.max(v))
-                });
-            let (qmin, qmax) = square
-                .iter()
-                .map(proj)
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
-                    (l.min(v), h.max(v))
-                });
-            let scale = (axis.0.abs() + axis.1.abs()) * tol;
-            if pmax <= qmin + scale || qmax <= pmin + scale {
-                return false;
-            }
-        }
-        true
+    fn overlaps(&self, poly: &[Point3<f64>], _reach: f64, touch: f64) -> bool {
+        // Separating axes of two convex polygons in the plane: the patch's
+        // parallelogram and the section. Touching (an overlap thinner than
+        // `touch`) does not count: a section that only meets the crack front
+        // line is not cut.
+        let frame = PlaneFrame::new(self.origin, &self.u, &self.v);
+        let o = self.origin;
+        let patch = [o, o + self.u, o + self.u + self.v, o + self.v].map(|x| frame.at(&x));
+        let section: Vec<(f64, f64)> = poly.iter().map(|p| frame.at(p)).collect();
+        convex_overlap(&section, &patch, touch)
     }
 
     fn contains(&self, x: &Point3<f64>, tol: f64) -> bool {
@@ -980,7 +993,7 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
     let boundary = surface.boundary();
     // The elements' boxes, once for the front's segments and its ends.
     let boxes = matches!(input.front, FrontMode::Tip).then(|| front::element_boxes(mesh));
-    let touch = surface.touch();
+    let touch = SECTION_TOUCH * largest.iter().fold(0.0, |m: f64, &h| m.max(h));
     let front = boxes
         .as_deref()
         .map(|b| front::front_segments_with(mesh, &boundary, b));
@@ -1084,7 +1097,7 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
         // lie beside the triangles in long elements, and an element left
         // uncut there joined the part inside to the body.)
         let reach = 2.0 * lift_distance(snap) * mesh.element_size(e);
-        if !boundary.is_empty() && !surface.overlaps(&poly, reach) {
+        if !boundary.is_empty() && !surface.overlaps(&poly, reach, touch) {
             elements.push(ElementCut::Uncut);
             continue;
         }
@@ -1103,7 +1116,7 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
                 // front a little behind runs through these elements (without
                 // them the result jumped by 3–7 % between the two, static,
                 // and a blade's energy by 5–9 % as its front reached them).
-                // (Within the surface's touch of the front too: the
+                // (Within a touch of the front too: the
                 // element ahead of such a gap overlaps the surface by less
                 // and is left uncut, and the front, held by neither, was
                 // lost: no branch functions, the cut ending a touch short.)
@@ -1194,7 +1207,11 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
                         // overlap the surface); its centroid decided before,
                         // and the cut ended a face short or long.
                         let pts = tri.map(|j| mesh.nodes[j]);
-                        surface.overlaps(&pts, 2.0 * lift_distance(snap) * mesh.element_size(e))
+                        surface.overlaps(
+                            &pts,
+                            2.0 * lift_distance(snap) * mesh.element_size(e),
+                            touch,
+                        )
                     };
                     if !inside {
                         ok = false;
@@ -1731,6 +1748,64 @@ mod tests {
                 let c = setup_cut(&m, &[CutInput::tip(surface, DEFAULT_SNAP, None)]).unwrap();
                 assert!(c.n_tip() > 0, "{name}, dz = {dz:e}: no tip nodes");
                 assert!(c.n_partial() > 0, "{name}, dz = {dz:e}: no front elements");
+            }
+        }
+    }
+
+    /// A patch and the same patch as two triangles decide alike where a
+    /// front lies a hair from a node layer: their overlaps measured in their
+    /// own (s, t) coordinates differed (an extended front 1e-8 h beyond a
+    /// node layer cut a row of elements more as a patch).
+    #[test]
+    fn a_patch_and_its_triangles_classify_alike_beside_a_node_layer() {
+        let m = box_mesh(Point3::origin(), Point3::new(1.0, 1.0, 2.0), [2, 4, 8]);
+        let h = 0.25;
+        let mut offsets = vec![0.0];
+        for e in [
+            1e-10, 5e-10, 1e-9, 2e-9, 3e-9, 5e-9, 6e-9, 7e-9, 1e-8, 2e-8, 1e-7,
+        ] {
+            offsets.extend([e, -e]);
+        }
+        for eps in offsets {
+            // Plane z = 1.125 (mid-element); front y = 0.5 + ε h, by a node layer.
+            let s = patch(
+                [-0.5, -0.5, 1.125],
+                [2.0, 0.0, 0.0],
+                [0.0, 1.0 + eps * h, 0.0],
+            );
+            let o = s.origin;
+            let corners = vec![o, o + s.u, o + s.u + s.v, o + s.v];
+            let tris = crate::surface::TriangleSurface::new(
+                corners,
+                vec![[0, 1, 2], [0, 2, 3]],
+                std::path::Path::new("patch.stl"),
+            )
+            .unwrap();
+            for tip in [false, true] {
+                let input = |surface| {
+                    if tip {
+                        CutInput::tip(surface, DEFAULT_SNAP, None)
+                    } else {
+                        CutInput::extend(surface, DEFAULT_SNAP)
+                    }
+                };
+                let a = setup_cut(&m, &[input(&s)]).unwrap();
+                let b = setup_cut(&m, &[input(&tris)]).unwrap();
+                let kind = |c: &CutSetup| -> Vec<u8> {
+                    c.elements
+                        .iter()
+                        .map(|e| match e {
+                            ElementCut::Uncut => 0,
+                            ElementCut::Touched { .. } => 1,
+                            ElementCut::Cut { partial: false, .. } => 2,
+                            ElementCut::Cut { partial: true, .. } => 3,
+                        })
+                        .collect()
+                };
+                let what = format!("ε = {eps:e}, tip = {tip}");
+                assert_eq!(kind(&a), kind(&b), "{what}: element classes");
+                assert_eq!(a.enriched, b.enriched, "{what}: Heaviside nodes");
+                assert_eq!(a.tip, b.tip, "{what}: tip nodes");
             }
         }
     }

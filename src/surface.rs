@@ -22,7 +22,7 @@
 //! - `boundary` is the boundary edges of the triangle mesh (edges of one
 //!   triangle): the front, where inside the body.
 
-use crate::cut::{CutSurface, PATCH_TOUCH};
+use crate::cut::{convex_overlap, CutSurface, PlaneFrame};
 use nalgebra::{Point3, Vector3};
 use rstar::{PointDistance, RTree, RTreeObject, AABB};
 use std::collections::HashMap;
@@ -255,9 +255,6 @@ pub struct TriangleSurface {
     /// Per boundary vertex: its boundary edges.
     boundary_at: HashMap<usize, Vec<(usize, usize)>>,
     tree: RTree<Tri>,
-    /// [`CutSurface::touch`]: the largest triangle's, from its two edges
-    /// at its first vertex (the axes of its coordinates in `overlaps`).
-    touch: f64,
 }
 
 impl TriangleSurface {
@@ -359,14 +356,6 @@ impl TriangleSurface {
                 })
                 .collect(),
         );
-        let touch = triangles
-            .iter()
-            .map(|t| {
-                let a = vertices[t[0]];
-                (vertices[t[1]] - a).norm() + (vertices[t[2]] - a).norm()
-            })
-            .fold(0.0, f64::max)
-            * PATCH_TOUCH;
         Ok(TriangleSurface {
             vertices,
             triangles,
@@ -380,7 +369,6 @@ impl TriangleSurface {
             side_neighbours,
             boundary_at,
             tree,
-            touch,
         })
     }
 
@@ -540,11 +528,7 @@ impl CutSurface for TriangleSurface {
         )
     }
 
-    fn touch(&self) -> f64 {
-        self.touch
-    }
-
-    fn overlaps(&self, poly: &[Point3<f64>], reach: f64) -> bool {
+    fn overlaps(&self, poly: &[Point3<f64>], reach: f64, touch: f64) -> bool {
         if poly.is_empty() {
             return false;
         }
@@ -569,11 +553,11 @@ impl CutSurface for TriangleSurface {
         };
         let mut overlaps = |tri: &Tri| {
             let a = tri.p[0];
-            let (e1, e2) = (tri.p[1] - a, tri.p[2] - a);
+            let frame = PlaneFrame::new(a, &(tri.p[1] - a), &(tri.p[2] - a));
             for (q, x) in pts.iter_mut().zip(poly) {
-                *q = plane_coordinates(&a, &e1, &e2, x);
+                *q = frame.at(x);
             }
-            convex_overlaps_unit_triangle(pts)
+            convex_overlap(pts, &tri.p.map(|x| frame.at(&x)), touch)
         };
         // The triangles meeting the section's own box first: where the
         // section lies on the surface one of them overlaps it, and the
@@ -636,11 +620,8 @@ impl CutSurface for EveryNode<'_> {
     fn level_set(&self, x: &Point3<f64>) -> f64 {
         self.0.level_set(x)
     }
-    fn overlaps(&self, poly: &[Point3<f64>], reach: f64) -> bool {
-        self.0.overlaps(poly, reach)
-    }
-    fn touch(&self) -> f64 {
-        self.0.touch()
+    fn overlaps(&self, poly: &[Point3<f64>], reach: f64, touch: f64) -> bool {
+        self.0.overlaps(poly, reach, touch)
     }
     fn contains(&self, x: &Point3<f64>, tol: f64) -> bool {
         self.0.contains(x, tol)
@@ -654,44 +635,6 @@ impl CutSurface for EveryNode<'_> {
     fn level_set_behind(&self, x: &Point3<f64>, front: &[[Point3<f64>; 2]]) -> (f64, bool) {
         self.0.level_set_behind(x, front)
     }
-}
-
-/// Whether the convex polygon `pts` (in (s, t)) overlaps the unit triangle
-/// (0,0), (1,0), (0,1) by more than a 1e-9 sliver: separating axes, as
-/// [`crate::cut::PlanarPatch`] does for its square.
-fn convex_overlaps_unit_triangle(pts: &[(f64, f64)]) -> bool {
-    let tol = PATCH_TOUCH;
-    let tri = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0)];
-    let span = |axis: (f64, f64), set: &[(f64, f64)]| {
-        set.iter()
-            .map(|p| p.0 * axis.0 + p.1 * axis.1)
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
-                (l.min(v), h.max(v))
-            })
-    };
-    let separates = |axis: (f64, f64)| {
-        let (pmin, pmax) = span(axis, pts);
-        let (qmin, qmax) = span(axis, &tri);
-        let scale = (axis.0.abs() + axis.1.abs()) * tol;
-        pmax <= qmin + scale || qmax <= pmin + scale
-    };
-    if [(1.0, 0.0), (0.0, 1.0), (1.0, 1.0)]
-        .into_iter()
-        .any(separates)
-    {
-        return false;
-    }
-    let n = pts.len();
-    if n >= 2 {
-        for i in 0..n {
-            let (a, b) = (pts[i], pts[(i + 1) % n]);
-            let axis = (-(b.1 - a.1), b.0 - a.0);
-            if (axis.0 != 0.0 || axis.1 != 0.0) && separates(axis) {
-                return false;
-            }
-        }
-    }
-    true
 }
 
 fn read_stl(path: &Path) -> Result<TriangleSurface, SurfaceError> {
