@@ -22,7 +22,7 @@
 //! - `boundary` is the boundary edges of the triangle mesh (edges of one
 //!   triangle): the front, where inside the body.
 
-use crate::cut::{convex_overlap, CutSurface, PlaneFrame};
+use crate::cut::{convex_contains, convex_overlap, CutSurface, PlaneFrame};
 use nalgebra::{Point3, Vector3};
 use rstar::{PointDistance, RTree, RTreeObject, AABB};
 use std::collections::HashMap;
@@ -128,20 +128,6 @@ fn closest_point(p: &[Point3<f64>; 3], x: &Point3<f64>) -> (Point3<f64>, Feature
     let v = vb * denom;
     let w = vc * denom;
     (a + ab * v + ac * w, Feature::Face)
-}
-
-/// (s, t) coordinates of the projection of x onto the plane of a + s e1 + t e2.
-fn plane_coordinates(
-    a: &Point3<f64>,
-    e1: &Vector3<f64>,
-    e2: &Vector3<f64>,
-    x: &Point3<f64>,
-) -> (f64, f64) {
-    let r = x - a;
-    let (uu, uv, vv) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
-    let (ru, rv) = (r.dot(e1), r.dot(e2));
-    let det = uu * vv - uv * uv;
-    ((ru * vv - rv * uv) / det, (rv * uu - ru * uv) / det)
 }
 
 /// The boundary edges' sides: chains of boundary edges that continue each
@@ -580,13 +566,12 @@ impl CutSurface for TriangleSurface {
         if !on_boundary {
             return true;
         }
-        // Near the boundary: inside some triangle's (s, t) range with tolerance.
-        let pad = 2.0 * (x - c).norm() + 1e-12 * (x.coords.norm() + 1.0);
+        // Near the boundary: in some triangle, or within `tol` of it in its plane.
+        let pad = 2.0 * (x - c).norm() + tol + 1e-12 * (x.coords.norm() + 1.0);
         self.near(*x, *x, pad).any(|tri| {
             let a = tri.p[0];
-            let (e1, e2) = (tri.p[1] - a, tri.p[2] - a);
-            let (s, t) = plane_coordinates(&a, &e1, &e2, x);
-            s >= -tol && t >= -tol && 1.0 - s - t >= -tol
+            let frame = PlaneFrame::new(a, &(tri.p[1] - a), &(tri.p[2] - a));
+            convex_contains(&tri.p.map(|y| frame.at(&y)), frame.at(x), tol)
         })
     }
 

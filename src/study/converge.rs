@@ -259,9 +259,10 @@ pub fn converge_case(
         .probes
         .iter()
         .filter_map(|x| {
-            let on_cut = patch
-                .as_ref()
-                .is_some_and(|p| p.level_set(x).abs() < 1e-12 && p.contains(x, 1e-9));
+            let on_cut = patch.as_ref().is_some_and(|p| {
+                let tol = 1e-9 * (p.u.norm() + p.v.norm());
+                p.level_set(x).abs() < 1e-12 && p.contains(x, tol)
+            });
             ref_at(&if on_cut { x + offset } else { *x }).map(|u| (*x, on_cut, u))
         })
         .collect();
