@@ -16,9 +16,12 @@
 //!   patch of [`crate::cut::PlanarPatch`], which is what makes a patch written
 //!   as triangles give the same cut set-up.
 //! - `overlaps` and `contains` are the patch's tests done in the plane of each
-//!   triangle near the points (separating axes in the triangle's (s, t)
-//!   coordinates; barycentric coordinates ≥ −tol), so a section polygon
-//!   overlaps the surface when it overlaps one of its triangles.
+//!   triangle near the points, in lengths (separating axes and edge lines in
+//!   orthonormal plane coordinates, one touch for every surface:
+//!   [`crate::cut::SECTION_TOUCH`]), so a section polygon overlaps the
+//!   surface when it overlaps one of its triangles. (A section overlapping
+//!   the surface by a few touches only at a corner where several triangles
+//!   meet can overlap each of them by less: taken for touching there.)
 //! - `boundary` is the boundary edges of the triangle mesh (edges of one
 //!   triangle): the front, where inside the body.
 
