@@ -179,6 +179,14 @@ impl PlanarPatch {
         self.u.cross(&self.v).normalize()
     }
 
+    /// An orthonormal frame of the patch's plane and its corners in it.
+    fn in_plane(&self) -> (PlaneFrame, [(f64, f64); 4]) {
+        let frame = PlaneFrame::new(self.origin, &self.u, &self.v);
+        let o = self.origin;
+        let corners = [o, o + self.u, o + self.u + self.v, o + self.v].map(|x| frame.at(&x));
+        (frame, corners)
+    }
+
     /// Patch coordinates (s, t) of the projection of x.
     pub fn coordinates(&self, x: &Point3<f64>) -> (f64, f64) {
         let r = x - self.origin;
@@ -203,17 +211,13 @@ impl CutSurface for PlanarPatch {
         // parallelogram and the section. Touching (an overlap thinner than
         // `touch`) does not count: a section that only meets the crack front
         // line is not cut.
-        let frame = PlaneFrame::new(self.origin, &self.u, &self.v);
-        let o = self.origin;
-        let patch = [o, o + self.u, o + self.u + self.v, o + self.v].map(|x| frame.at(&x));
+        let (frame, patch) = self.in_plane();
         let section: Vec<(f64, f64)> = poly.iter().map(|p| frame.at(p)).collect();
         convex_overlap(&section, &patch, touch)
     }
 
     fn contains(&self, x: &Point3<f64>, tol: f64) -> bool {
-        let frame = PlaneFrame::new(self.origin, &self.u, &self.v);
-        let o = self.origin;
-        let patch = [o, o + self.u, o + self.u + self.v, o + self.v].map(|y| frame.at(&y));
+        let (frame, patch) = self.in_plane();
         convex_contains(&patch, frame.at(x), tol)
     }
 
