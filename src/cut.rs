@@ -240,7 +240,12 @@ impl CutSurface for PlanarPatch {
     }
 }
 
-/// A sub-tetrahedron of a cut element, positively oriented, on side +1 or −1.
+/// A sub-tetrahedron of a cut element, on side +1 or −1. Its vertices come
+/// in the order the split makes them from the element's canonical order
+/// ([`TetMesh::canonical_vertices`]), whatever its orientation: the rules
+/// built on them (collapsed, refined) then depend on neither the listing of
+/// the element's nodes nor the handedness of the coordinates (a mirrored
+/// mesh gives mirrored sub-tets, in the same order). Use |volume|.
 #[derive(Debug, Clone)]
 pub struct SubTet {
     pub vertices: [Point3<f64>; 4],
@@ -1106,8 +1111,10 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
     let mut elements: Vec<ElementCut> = Vec::with_capacity(mesh.n_elements());
     let mut crossed = vec![false; mesh.n_elements()];
     for e in 0..mesh.n_elements() {
-        let v = mesh.vertices(e);
-        let p = mesh.vertex_points(e);
+        // In the canonical order: the sub-tets, and so the quadrature of
+        // the element, do not depend on how the mesh lists its nodes.
+        let v = mesh.canonical_vertices(e);
+        let p = mesh.canonical_points(e);
         let f = v.map(|i| phi[i]);
         let (pos, neg) = (
             f.iter().filter(|&&x| x > 0.0).count(),
@@ -1478,7 +1485,8 @@ fn edge_point(a: Point3<f64>, b: Point3<f64>, fa: f64, fb: f64) -> Point3<f64> {
 }
 
 /// Splits a crossed tet (vertex level set values `f`, both strict signs
-/// present) into positively oriented sub-tets on each side.
+/// present) into sub-tets on each side, of either orientation
+/// ([`SubTet`]).
 pub fn split_tet(p: &[Point3<f64>; 4], f: &[f64; 4]) -> Vec<SubTet> {
     let idx =
         |pred: &dyn Fn(f64) -> bool| -> Vec<usize> { (0..4).filter(|&i| pred(f[i])).collect() };
@@ -1488,11 +1496,7 @@ pub fn split_tet(p: &[Point3<f64>; 4], f: &[f64; 4]) -> Vec<SubTet> {
     let ep = |i: usize, j: usize| edge_point(p[i], p[j], f[i], f[j]);
     let mut out: Vec<SubTet> = Vec::with_capacity(6);
     let mut push = |v: [Point3<f64>; 4], side: i8| {
-        let mut v = v;
-        if tet_volume(&v) < 0.0 {
-            v.swap(1, 2);
-        }
-        if tet_volume(&v) > 0.0 {
+        if tet_volume(&v) != 0.0 {
             out.push(SubTet { vertices: v, side });
         }
     };
@@ -1567,13 +1571,13 @@ mod tests {
 
     fn check_split(p: &[Point3<f64>; 4], f: &[f64; 4]) {
         let subs = split_tet(p, f);
-        let vol = tet_volume(p);
-        let total: f64 = subs.iter().map(|s| tet_volume(&s.vertices)).sum();
+        let vol = tet_volume(p).abs();
+        let total: f64 = subs.iter().map(|s| tet_volume(&s.vertices).abs()).sum();
         assert!(
             (total - vol).abs() <= 1e-14 * vol,
             "volumes {total} vs {vol} for {f:?}"
         );
-        assert!(subs.iter().all(|s| tet_volume(&s.vertices) > 0.0));
+        assert!(subs.iter().all(|s| tet_volume(&s.vertices) != 0.0));
         assert!(
             subs.iter().any(|s| s.side == 1) && subs.iter().any(|s| s.side == -1),
             "{f:?}"

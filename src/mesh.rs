@@ -71,6 +71,21 @@ impl TetMesh {
         self.vertices(e).map(|i| self.nodes[i])
     }
 
+    /// Element `e`'s vertex indices in ascending order: the order its
+    /// integration cells are built in (splits by a cut, refinements towards
+    /// a front, collapsed rules), so that neither the listing of its nodes
+    /// nor the handedness of the coordinates changes its quadrature.
+    pub fn canonical_vertices(&self, e: usize) -> [usize; 4] {
+        let mut v = self.vertices(e);
+        v.sort_unstable();
+        v
+    }
+
+    /// The positions of [`TetMesh::canonical_vertices`].
+    pub fn canonical_points(&self, e: usize) -> [Point3<f64>; 4] {
+        self.canonical_vertices(e).map(|i| self.nodes[i])
+    }
+
     /// Signed volume of element `e` (straight-sided).
     pub fn volume(&self, e: usize) -> f64 {
         tet_volume(&self.vertex_points(e))

@@ -550,7 +550,7 @@ impl Model {
         ElementEvaluator {
             kind: self.mesh.kind,
             map: BarycentricMap::new(&verts),
-            verts,
+            canonical: self.mesh.canonical_points(e),
             dl,
             len: self.elements[e].shapes.len(),
             fixed_side,
@@ -608,7 +608,6 @@ impl Model {
         out: &mut Vec<(Point3<f64>, f64, i8)>,
     ) {
         out.clear();
-        let verts = ev.verts;
         let mut push_cell = |cell: &[Point3<f64>; 4], side: i8| match (&ev.shapes, ev.front) {
             (Some(shapes), true) => out.extend(
                 shapes
@@ -617,7 +616,7 @@ impl Model {
                     .map(|q| (q.x, q.weight, side)),
             ),
             _ => {
-                let v = tet_volume(cell);
+                let v = tet_volume(cell).abs();
                 out.extend(quadrature::DEGREE5.iter().map(|q| {
                     let x = cell
                         .iter()
@@ -633,8 +632,8 @@ impl Model {
                     push_cell(&s.vertices, s.side);
                 }
             }
-            Some(ElementCut::Touched { side }) => push_cell(&verts, *side),
-            _ => push_cell(&verts, 0),
+            Some(ElementCut::Touched { side }) => push_cell(&ev.canonical, *side),
+            _ => push_cell(&ev.canonical, 0),
         }
     }
 
@@ -682,7 +681,9 @@ pub struct ElementEvaluator {
     /// Points to the element's barycentric coordinates (`None`: degenerate,
     /// which no built model holds; the centroid stands in).
     map: Option<BarycentricMap>,
-    verts: [Point3<f64>; 4],
+    /// The element's vertices in its canonical order, its cell where it is
+    /// not cut ([`TetMesh::canonical_points`]).
+    canonical: [Point3<f64>; 4],
     dl: [Vector3<f64>; 4],
     len: usize,
     /// The side the element's field is seen from (`None`: a cut element, the point's own).
@@ -1387,8 +1388,11 @@ fn element_cells(
     let mut heaviside = Vec::new();
     let mut node_side = [0i8; 10];
     let mut cells = Vec::new();
+    // Cells of either orientation ([`crate::cut::SubTet`]); an element's
+    // own cell in its canonical order.
+    let canonical = mesh.canonical_points(e);
     let mut cell = |vertices: [Point3<f64>; 4], side: i8| {
-        let volume = tet_volume(&vertices);
+        let volume = tet_volume(&vertices).abs();
         if volume > 0.0 {
             cells.push(Cell {
                 vertices,
@@ -1420,9 +1424,9 @@ fn element_cells(
                     }
                 }
             }
-            cell(verts, *side);
+            cell(canonical, *side);
         }
-        _ => cell(verts, 0),
+        _ => cell(canonical, 0),
     }
     let tip = cut.and_then(|c| ElementShapes::new(mesh, c, e, &dl, heaviside.clone()));
     if let (Some(shapes), Some(c)) = (&tip, cut) {

@@ -44,7 +44,13 @@ fn picture(model: &Model, d: &[f64]) -> Picture {
             Some(ElementCut::Cut { sub_tets, partial }) => {
                 for s in sub_tets {
                     let mut conn = Vec::with_capacity(4);
-                    for p in &s.vertices {
+                    // Positively oriented, as VTK expects (a split keeps
+                    // the element's canonical order, either orientation).
+                    let mut vertices = s.vertices;
+                    if crate::mesh::tet_volume(&vertices) < 0.0 {
+                        vertices.swap(1, 2);
+                    }
+                    for p in &vertices {
                         pic.points.push(*p);
                         pic.disp.push(model.displacement_at(d, e, p, s.side));
                         conn.push(pic.points.len() - 1);

@@ -1741,9 +1741,11 @@ fn a_border_grown_on_the_same_factor_reuses_its_columns_and_solves_alike() {
             d_fresh <= 1e-11 && d_grown <= 1e-11,
             "{d_fresh:e} {d_grown:e}"
         );
-        if previous.is_some() {
-            assert!(grown.solved_columns() < grown.event_solves());
-        }
+        // (Not at every event: a coupling that an event assembles again
+        // can change in its last bits, its sum taken in another order,
+        // and only the leading columns up to the first changed one are
+        // kept: at bb13183 events 1 and 2 kept 3 and 39 of 42 columns, with
+        // cells in each element's canonical order 0 and 42.)
         reused += grown.event_solves() - grown.solved_columns();
         previous = Some(grown);
         events += 1;

@@ -552,7 +552,14 @@ fn dofs_added_per_front_length_against_tip_radius() {
 /// front cells (17× the points). The solution's error follows the residual
 /// (displacement 0.5×, energy norm 1.6× it, at every rule tried), so the test
 /// asserts both: the rule's residual, and an error no larger than a small
-/// multiple of it (a modelling error would not shrink with the rule). The
+/// multiple of it (a modelling error would not shrink with the rule).
+/// Those figures took each cell's vertices in the element's listing order.
+/// In its canonical order (ascending nodes, what the model does since the
+/// listing must not matter, tests/listing.rs) the same rules give, Tet4
+/// topological, residual / displacement / energy-norm error: 2.7e-5 /
+/// 3.8e-5 / 9.5e-5 (the model's rule), 1.1e-5 / 1.9e-5 / 5.9e-5 (refined
+/// twice), 1.2e-6 / 8.1e-7 / 2.1e-6 (three times, 6³): the errors still
+/// fall with the residual, at 0.7–5.4 times it, so the multiple is 6. The
 /// strain is compared in the energy norm: a tip DOF's strain grows like
 /// r^(-1/2) at the front, so a pointwise bound would measure how close the
 /// rule's points come to it.
@@ -682,7 +689,7 @@ fn patch_test_with_tip_nodes_present() {
             .fold(0.0f64, |a, v| a.max(v.abs()))
             / u_scale;
         println!("{name}: {n_tip} tip, {n_heaviside} Heaviside nodes; residual of the exact state {residual:.1e}; displacement error {u_err:.1e}, energy-norm error {e_err:.1e}, largest enriched DOF {enriched:.1e} (relative)");
-        let response = 3.0 * residual.max(1e-13);
+        let response = 6.0 * residual.max(1e-13);
         if !(residual <= bound && u_err <= response && e_err <= response) {
             failures.push(format!(
                 "{name}: residual {residual:e}, errors {u_err:e} {e_err:e}"
