@@ -1114,7 +1114,7 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
         // In the canonical order: the sub-tets, and so the quadrature of
         // the element, do not depend on how the mesh lists its nodes.
         let v = mesh.canonical_vertices(e);
-        let p = mesh.canonical_points(e);
+        let p = v.map(|i| mesh.nodes[i]);
         let f = v.map(|i| phi[i]);
         let (pos, neg) = (
             f.iter().filter(|&&x| x > 0.0).count(),
