@@ -33,6 +33,15 @@ pub const NONE: u32 = u32::MAX;
 pub enum ModelError {
     #[error("element {element} is degenerate (volume {volume:e})")]
     DegenerateElement { element: usize, volume: f64 },
+    #[error(
+        "mid-node {node} lies {offset:e} off the midpoint of its edge (length {length:e}): \
+         Tet10 elements here are straight-sided (TetMesh::straighten_edges)"
+    )]
+    CurvedEdge {
+        node: usize,
+        offset: f64,
+        length: f64,
+    },
     #[error("the model has {0} DOFs, more than this solver indexes")]
     TooLarge(usize),
     #[error(
@@ -275,6 +284,16 @@ impl Model {
             tractions,
             need_mass,
         } = input;
+        // The corotational local displacements Rᵀ(x + d) − x read every
+        // node's position; a straight-sided element's map holds its
+        // mid-nodes only at the midpoints.
+        if let Some((node, offset, length)) = mesh.curved_mid_node() {
+            return Err(ModelError::CurvedEdge {
+                node,
+                offset,
+                length,
+            });
+        }
         let n_shape = shape_count(&mesh, cut.as_ref())?;
         let mut shape_ref: Vec<Vector3<f64>> = mesh.nodes.iter().map(|p| p.coords).collect();
         shape_ref.resize(n_shape, Vector3::zeros());

@@ -2,6 +2,7 @@
 //! actually uses (mass kind, linear solver, formulation, analysis).
 
 use crate::dynamics::{EventSolve, LinearSolver, MassKind};
+use crate::mesh::Straightened;
 use crate::model::{Formulation, Model};
 use crate::scene::{Analysis, BodyGeometry, Scene};
 use std::fmt;
@@ -54,6 +55,23 @@ impl Plan {
         if let Some(stage) = self.stages.iter_mut().find(|s| s.name == "mesh") {
             let kind = stage.why.split(' ').next().unwrap_or_default().to_string();
             stage.why = format!("{kind} gmsh file {}, given by --mesh", path.display());
+        }
+    }
+
+    /// The mesh file's Tet10 mid-nodes its reader moved onto their edges
+    /// (elements are straight-sided), said in the mesh stage.
+    pub fn straightened(&mut self, s: &Straightened) {
+        if s.mid_nodes == 0 {
+            return;
+        }
+        if let Some(stage) = self.stages.iter_mut().find(|s| s.name == "mesh") {
+            stage.why = format!(
+                "{}; {} mid-nodes off their edges (up to {:.2e} m, {:.1} % of the edge) put at the midpoints: elements are straight-sided",
+                stage.why,
+                s.mid_nodes,
+                s.largest,
+                100.0 * s.largest_relative
+            );
         }
     }
 

@@ -130,16 +130,16 @@ pub fn solve_scene_with(
 ) -> Result<RunResult, RunError> {
     let file = scene.file.display().to_string();
     let t0 = Instant::now();
-    let mesh = match mesh_override {
+    let (mesh, straightened) = match mesh_override {
         Some(p) => {
-            let m = scene.read_mesh(p)?;
+            let (m, straightened) = scene.read_mesh_noted(p)?;
             if scene.element == crate::mesh::ElementKind::Tet10 {
-                m.to_tet10()
+                (m.to_tet10(), straightened)
             } else {
-                m
+                (m, straightened)
             }
         }
-        None => scene.mesh(level)?,
+        None => scene.mesh_noted(level)?,
     };
     let t_mesh = t0.elapsed().as_secs_f64();
     check_probes(scene, &mesh)?;
@@ -163,6 +163,7 @@ pub fn solve_scene_with(
         if let Some(p) = mesh_override {
             result.plan.mesh_from(p);
         }
+        result.plan.straightened(&straightened);
         return Ok(result);
     }
     // The fill-reducing rule of `Cholesky::fill_reducing` (METIS nested
@@ -184,6 +185,7 @@ pub fn solve_scene_with(
     if let Some(p) = mesh_override {
         plan.mesh_from(p);
     }
+    plan.straightened(&straightened);
     let beside = threads > 1;
     let factor = chol.describe();
     let mut timings = Timings {

@@ -14,7 +14,7 @@ pub mod schema;
 use crate::cut::PlanarPatch;
 use crate::dynamics::DynamicOptions;
 use crate::material::Material;
-use crate::mesh::{box_mesh, ElementKind, TetMesh};
+use crate::mesh::{box_mesh, ElementKind, Straightened, TetMesh};
 use crate::model::Formulation;
 use crate::statics::StaticOptions;
 use nalgebra::{Point3, Vector3};
@@ -259,13 +259,20 @@ impl Scene {
     /// refused before meshing when the scene would not fit in memory
     /// ([`Scene::check_memory`]).
     pub fn mesh(&self, level: usize) -> Result<TetMesh, SceneError> {
+        self.mesh_noted(level).map(|(mesh, _)| mesh)
+    }
+
+    /// [`Scene::mesh`] with the mid-nodes its file's reader straightened.
+    pub fn mesh_noted(&self, level: usize) -> Result<(TetMesh, Straightened), SceneError> {
         self.check_level(level)?;
         self.check_memory(level)?;
-        let mesh = match &self.geometry {
-            BodyGeometry::Box { min, max, levels } => box_mesh(*min, *max, levels[level]),
-            BodyGeometry::Meshes(files) => self.read_mesh(&files[level])?,
+        let (mesh, straightened) = match &self.geometry {
+            BodyGeometry::Box { min, max, levels } => {
+                (box_mesh(*min, *max, levels[level]), Straightened::default())
+            }
+            BodyGeometry::Meshes(files) => self.read_mesh_noted(&files[level])?,
         };
-        Ok(match self.element {
+        let mesh = match self.element {
             ElementKind::Tet4 if mesh.kind == ElementKind::Tet10 => {
                 return Err(SceneError::MeshKind {
                     file: self.file(),
@@ -274,13 +281,20 @@ impl Scene {
             }
             ElementKind::Tet4 => mesh,
             ElementKind::Tet10 => mesh.to_tet10(),
-        })
+        };
+        Ok((mesh, straightened))
     }
 
     /// Reads a gmsh mesh file.
     pub fn read_mesh(&self, path: &Path) -> Result<TetMesh, SceneError> {
+        self.read_mesh_noted(path).map(|(mesh, _)| mesh)
+    }
+
+    /// [`Scene::read_mesh`] with the Tet10 mid-nodes the reader moved onto
+    /// their edges ([`crate::mesh::TetMesh::straighten_edges`]).
+    pub fn read_mesh_noted(&self, path: &Path) -> Result<(TetMesh, Straightened), SceneError> {
         crate::io::read_msh(path)
-            .map(|m| m.mesh)
+            .map(|m| (m.mesh, m.straightened))
             .map_err(|source| SceneError::Mesh {
                 file: self.file(),
                 mesh: path.display().to_string(),

@@ -1001,3 +1001,46 @@ fn a_dynamic_step_that_fails_on_inverted_elements_says_so() {
     assert!(message.contains("integration groups inverted"), "{message}");
     assert!((1.0..=100.0).contains(&percent), "{message}");
 }
+
+/// A Tet10 mesh whose mid-nodes are off their edges is refused by the model
+/// (its elements are straight-sided; the corotational local displacements
+/// would read the mid-nodes' positions), naming the node; straightened, it
+/// builds and a rigid rotation leaves it without forces.
+#[test]
+fn a_model_refuses_curved_tet10_edges_and_builds_them_straightened() {
+    let mut mesh = box_mesh(Point3::origin(), Point3::new(1.0, 1.0, 1.0), [2, 2, 2]).to_tet10();
+    let mid = mesh.element(5)[7];
+    mesh.nodes[mid].x += 0.03;
+    let input = |mesh: TetMesh| ModelInput {
+        mesh,
+        material: MAT,
+        formulation: Formulation::Corotational,
+        cut: None,
+        fixed: Vec::new(),
+        gravity: None,
+        body_force: None,
+        tractions: &[],
+        need_mass: false,
+    };
+    match Model::build(input(mesh.clone())) {
+        Err(xfem_cut::model::ModelError::CurvedEdge { node, offset, .. }) => {
+            assert_eq!(node, mid);
+            assert!((offset - 0.03).abs() < 1e-12, "{offset}");
+        }
+        other => panic!("{:?}", other.map(|_| ())),
+    }
+    assert_eq!(mesh.straighten_edges().unwrap().mid_nodes, 1);
+    let model = Model::build(input(mesh)).unwrap();
+    let rot = Rotation3::from_axis_angle(&Unit::new_normalize(Vector3::new(1.0, 2.0, 3.0)), 1.1);
+    let d: Vec<f64> = model
+        .mesh
+        .nodes
+        .iter()
+        .flat_map(|p| {
+            let u = rot * p.coords - p.coords;
+            [u.x, u.y, u.z]
+        })
+        .collect();
+    let f = forces(&model, &d);
+    assert!(norm(&f) <= 1e-9, "rigid rotation: |f| = {:e}", norm(&f));
+}

@@ -6,7 +6,7 @@
 //! other volume element is an error rather than a silent hole in the body.
 
 use super::{read_bytes, IoError};
-use crate::mesh::{ElementKind, TetMesh};
+use crate::mesh::{ElementKind, Straightened, TetMesh};
 use mshio::mshfile::ElementType;
 use nalgebra::Point3;
 use std::collections::HashMap;
@@ -35,6 +35,9 @@ pub struct MshMesh {
     pub element_entity: Vec<i32>,
     /// Volume entity tag → its physical tags (from `$Entities`).
     pub entity_physical: HashMap<i32, Vec<i32>>,
+    /// The Tet10 mid-nodes the reader moved onto their edges' midpoints
+    /// (a curved body's mesh of order 2: elements here are straight-sided).
+    pub straightened: Straightened,
 }
 
 impl MshMesh {
@@ -229,6 +232,16 @@ pub fn parse_msh(bytes: &[u8], path: &Path) -> Result<MshMesh, IoError> {
         ));
     }
     mesh.orient_positively();
+    let straightened = mesh.straighten_edges().map_err(|node| {
+        let tag = node_index
+            .iter()
+            .find_map(|(&tag, &i)| (i == node).then_some(tag))
+            .unwrap_or_default();
+        IoError::invalid(
+            path,
+            format!("node {tag} is the mid-node of two edges (or a mid-node and a vertex)"),
+        )
+    })?;
 
     let entity_physical = file
         .data
@@ -247,6 +260,7 @@ pub fn parse_msh(bytes: &[u8], path: &Path) -> Result<MshMesh, IoError> {
         physical_names: physical_names(path, bytes)?,
         element_entity,
         entity_physical,
+        straightened,
     })
 }
 
@@ -461,6 +475,29 @@ $EndElements
         assert!(m.mesh.volume(0) > 0.0);
         assert_midnodes_on_edges(&m.mesh, 0.0);
         assert!(m.physical_names.is_empty() && m.physical_tags(0).is_empty());
+    }
+
+    #[test]
+    fn curved_tet10_mid_nodes_are_put_on_their_edges_and_a_shared_one_refused() {
+        // A cylinder meshed by gmsh with order 2 (mid-nodes of boundary edges
+        // on the cylinder) and its twin with `Mesh.SecondOrderLinear = 1`.
+        let curved = read_msh(&fixture("gmsh_cylinder_tet10_curved.msh")).unwrap();
+        let straight = read_msh(&fixture("gmsh_cylinder_tet10_straight.msh")).unwrap();
+        assert!(curved.straightened.mid_nodes > 0 && curved.straightened.largest > 1e-4);
+        assert_eq!(straight.straightened, Straightened::default());
+        assert_midnodes_on_edges(&curved.mesh, 1e-15);
+        assert_eq!(curved.mesh.cells, straight.mesh.cells);
+        for (p, q) in curved.mesh.nodes.iter().zip(&straight.mesh.nodes) {
+            assert!((p - q).norm() <= 1e-15, "{p} {q}");
+        }
+        // A vertex given as a mid-node: one line naming the node.
+        let dir = tempfile::tempdir().unwrap();
+        let bad = ONE_TET10.replace("1 1 2 3 4 5 6 7 8 9 10", "1 1 2 3 4 5 6 7 8 9 1");
+        let err = read_msh(&write(&dir, &bad)).unwrap_err().to_string();
+        assert!(
+            err.contains("node 1 is the mid-node of two edges") && !err.contains('\n'),
+            "{err}"
+        );
     }
 
     #[test]
