@@ -2,7 +2,7 @@
 //! actually uses (mass kind, linear solver, formulation, analysis).
 
 use crate::dynamics::{EventSolve, LinearSolver, MassKind};
-use crate::mesh::Straightened;
+use crate::io::MeshNotes;
 use crate::model::{Formulation, Model};
 use crate::scene::{Analysis, BodyGeometry, Scene};
 use std::fmt;
@@ -58,19 +58,29 @@ impl Plan {
         }
     }
 
-    /// The mesh file's Tet10 mid-nodes its reader moved onto their edges
-    /// (elements are straight-sided), said in the mesh stage.
-    pub fn straightened(&mut self, s: &Straightened) {
-        if s.mid_nodes == 0 {
+    /// What the mesh file's reader changed, said in the mesh stage: Tet10
+    /// mid-nodes moved onto their edges (elements are straight-sided),
+    /// nodes no tetrahedron uses left out.
+    pub fn mesh_notes(&mut self, notes: &MeshNotes) {
+        let Some(stage) = self.stages.iter_mut().find(|s| s.name == "mesh") else {
             return;
-        }
-        if let Some(stage) = self.stages.iter_mut().find(|s| s.name == "mesh") {
+        };
+        let s = &notes.straightened;
+        if s.mid_nodes > 0 {
             stage.why = format!(
                 "{}; {} mid-nodes off their edges (up to {:.2e} m, {:.1} % of the edge) put at the midpoints: elements are straight-sided",
                 stage.why,
                 s.mid_nodes,
                 s.largest,
                 100.0 * s.largest_relative
+            );
+        }
+        if notes.unused_nodes > 0 {
+            stage.why = format!(
+                "{}; {} node{} no tetrahedron uses left out",
+                stage.why,
+                notes.unused_nodes,
+                if notes.unused_nodes == 1 { "" } else { "s" }
             );
         }
     }

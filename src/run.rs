@@ -130,13 +130,13 @@ pub fn solve_scene_with(
 ) -> Result<RunResult, RunError> {
     let file = scene.file.display().to_string();
     let t0 = Instant::now();
-    let (mesh, straightened) = match mesh_override {
+    let (mesh, notes) = match mesh_override {
         Some(p) => {
-            let (m, straightened) = scene.read_mesh_noted(p)?;
+            let (m, notes) = scene.read_mesh_noted(p)?;
             if scene.element == crate::mesh::ElementKind::Tet10 {
-                (m.to_tet10(), straightened)
+                (m.to_tet10(), notes)
             } else {
-                (m, straightened)
+                (m, notes)
             }
         }
         None => scene.mesh_noted(level)?,
@@ -163,7 +163,7 @@ pub fn solve_scene_with(
         if let Some(p) = mesh_override {
             result.plan.mesh_from(p);
         }
-        result.plan.straightened(&straightened);
+        result.plan.mesh_notes(&notes);
         return Ok(result);
     }
     // The fill-reducing rule of `Cholesky::fill_reducing` (METIS nested
@@ -185,7 +185,7 @@ pub fn solve_scene_with(
     if let Some(p) = mesh_override {
         plan.mesh_from(p);
     }
-    plan.straightened(&straightened);
+    plan.mesh_notes(&notes);
     let beside = threads > 1;
     let factor = chol.describe();
     let mut timings = Timings {

@@ -13,8 +13,9 @@ pub mod schema;
 
 use crate::cut::PlanarPatch;
 use crate::dynamics::DynamicOptions;
+use crate::io::MeshNotes;
 use crate::material::Material;
-use crate::mesh::{box_mesh, ElementKind, Straightened, TetMesh};
+use crate::mesh::{box_mesh, ElementKind, TetMesh};
 use crate::model::Formulation;
 use crate::statics::StaticOptions;
 use nalgebra::{Point3, Vector3};
@@ -262,13 +263,13 @@ impl Scene {
         self.mesh_noted(level).map(|(mesh, _)| mesh)
     }
 
-    /// [`Scene::mesh`] with the mid-nodes its file's reader straightened.
-    pub fn mesh_noted(&self, level: usize) -> Result<(TetMesh, Straightened), SceneError> {
+    /// [`Scene::mesh`] with what its file's reader changed.
+    pub fn mesh_noted(&self, level: usize) -> Result<(TetMesh, MeshNotes), SceneError> {
         self.check_level(level)?;
         self.check_memory(level)?;
-        let (mesh, straightened) = match &self.geometry {
+        let (mesh, notes) = match &self.geometry {
             BodyGeometry::Box { min, max, levels } => {
-                (box_mesh(*min, *max, levels[level]), Straightened::default())
+                (box_mesh(*min, *max, levels[level]), MeshNotes::default())
             }
             BodyGeometry::Meshes(files) => self.read_mesh_noted(&files[level])?,
         };
@@ -282,7 +283,7 @@ impl Scene {
             ElementKind::Tet4 => mesh,
             ElementKind::Tet10 => mesh.to_tet10(),
         };
-        Ok((mesh, straightened))
+        Ok((mesh, notes))
     }
 
     /// Reads a gmsh mesh file.
@@ -290,11 +291,12 @@ impl Scene {
         self.read_mesh_noted(path).map(|(mesh, _)| mesh)
     }
 
-    /// [`Scene::read_mesh`] with the Tet10 mid-nodes the reader moved onto
-    /// their edges ([`crate::mesh::TetMesh::straighten_edges`]).
-    pub fn read_mesh_noted(&self, path: &Path) -> Result<(TetMesh, Straightened), SceneError> {
+    /// [`Scene::read_mesh`] with what the reader changed: Tet10 mid-nodes
+    /// moved onto their edges ([`crate::mesh::TetMesh::straighten_edges`]),
+    /// nodes no tetrahedron uses left out.
+    pub fn read_mesh_noted(&self, path: &Path) -> Result<(TetMesh, MeshNotes), SceneError> {
         crate::io::read_msh(path)
-            .map(|m| (m.mesh, m.straightened))
+            .map(|m| (m.mesh, m.notes))
             .map_err(|source| SceneError::Mesh {
                 file: self.file(),
                 mesh: path.display().to_string(),

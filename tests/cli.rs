@@ -751,3 +751,71 @@ points = [[0.0, 0.0, 0.1], [0.02, 0.0, 0.1], [-0.02, 0.0, 0.1], [0.0, 0.0, 0.053
         "curved against straight: {worst:e} of {scale:e}"
     );
 }
+
+/// A gmsh file with a node no tetrahedron uses (here a point of its own,
+/// as a surface saved in the same file leaves) solves as the file without
+/// it, and the plan says so. Before, the node kept DOFs no element held:
+/// "the system matrix is not positive definite".
+#[test]
+fn a_node_no_tetrahedron_uses_is_left_out() {
+    let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures");
+    let text = std::fs::read_to_string(fixtures.join("gmsh_cylinder_tet10_straight.msh")).unwrap();
+    let orphan = text.replacen(
+        "$Nodes\n9 211 1 211\n",
+        "$Nodes\n10 212 1 212\n0 1 0 1\n212\n0.5 0.5 0.5\n",
+        1,
+    );
+    assert_ne!(orphan, text);
+    let dir = tempfile::tempdir().unwrap();
+    let run = |mesh: &str| {
+        std::fs::write(
+            dir.path().join(mesh),
+            if mesh == "orphan.msh" { &orphan } else { &text },
+        )
+        .unwrap();
+        let case = dir.path().join(format!("{mesh}.toml"));
+        let out = dir.path().join(format!("{mesh}.out"));
+        std::fs::write(
+            &case,
+            GOOD.replace(
+                "box = [[0.0, 0.0, 0.0], [0.03, 0.06, 0.2]]\nlevels = [[1, 2, 4]]",
+                &format!("mesh = [\"{mesh}\"]\nelement = \"tet10\""),
+            )
+            .replace(
+                "[[0.0, 0.03, 0.2], [0.03, 0.06, 0.2]]",
+                "[[0.0, 0.0, 0.1], [0.02, 0.0, 0.05]]",
+            ),
+        )
+        .unwrap();
+        let run = Command::new(bin())
+            .arg("run")
+            .arg(&case)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(
+            run.status.success(),
+            "{mesh}: {}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let stdout = String::from_utf8_lossy(&run.stdout).to_string();
+        let line = stdout
+            .lines()
+            .find(|l| l.contains("] mesh"))
+            .unwrap()
+            .to_string();
+        (
+            std::fs::read_to_string(out.join("probes.csv")).unwrap(),
+            line,
+        )
+    };
+    let (with, with_plan) = run("orphan.msh");
+    let (without, without_plan) = run("plain.msh");
+    assert_eq!(with, without);
+    assert!(
+        with_plan.contains("1 node no tetrahedron uses left out"),
+        "{with_plan}"
+    );
+    assert!(!without_plan.contains("left out"), "{without_plan}");
+}

@@ -14,7 +14,7 @@ pub mod msh;
 pub mod vtu;
 
 pub use csv::{read_probes_csv, write_probes_csv};
-pub use msh::{parse_msh, read_msh, MshMesh, PhysicalName};
+pub use msh::{parse_msh, read_msh, MeshNotes, MshMesh, PhysicalName};
 pub use vtu::{read_pvd, read_vtu, write_pvd, write_vtu, write_vtu_ascii, VtuData};
 
 use std::fs::File;

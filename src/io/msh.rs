@@ -25,9 +25,10 @@ pub struct PhysicalName {
 /// numbering and to its physical groups.
 #[derive(Debug, Clone)]
 pub struct MshMesh {
-    /// Nodes in file order, numbered 0..n; tets in file order, positively oriented.
+    /// Nodes in file order, numbered 0..n, those no tetrahedron uses left
+    /// out; tets in file order, positively oriented.
     pub mesh: TetMesh,
-    /// gmsh node tag → node index in `mesh`.
+    /// gmsh node tag → node index in `mesh` (the nodes it keeps).
     pub node_index: HashMap<u64, usize>,
     /// `$PhysicalNames`, in file order (empty when the section is absent).
     pub physical_names: Vec<PhysicalName>,
@@ -35,9 +36,18 @@ pub struct MshMesh {
     pub element_entity: Vec<i32>,
     /// Volume entity tag → its physical tags (from `$Entities`).
     pub entity_physical: HashMap<i32, Vec<i32>>,
-    /// The Tet10 mid-nodes the reader moved onto their edges' midpoints
-    /// (a curved body's mesh of order 2: elements here are straight-sided).
+    /// What the reader changed.
+    pub notes: MeshNotes,
+}
+
+/// What [`read_msh`] changed in a file's mesh, for the plan to say.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct MeshNotes {
+    /// The Tet10 mid-nodes moved onto their edges' midpoints (a curved
+    /// body's mesh of order 2: elements here are straight-sided).
     pub straightened: Straightened,
+    /// Nodes no tetrahedron uses, left out.
+    pub unused_nodes: usize,
 }
 
 impl MshMesh {
@@ -89,6 +99,8 @@ pub fn read_msh(path: &Path) -> Result<MshMesh, IoError> {
 pub fn parse_msh(bytes: &[u8], path: &Path) -> Result<MshMesh, IoError> {
     // mshio is a third-party parser of untrusted bytes: a panic in it (say, an
     // arithmetic overflow on a hostile header) becomes an error naming the file.
+    let tagged = with_node_tags_kept(bytes);
+    let bytes = tagged.as_deref().unwrap_or(bytes);
     let parsed = std::panic::catch_unwind(|| {
         mshio::parse_msh_bytes(bytes).map_err(|e| {
             let text = e.to_string();
@@ -220,6 +232,32 @@ pub fn parse_msh(bytes: &[u8], path: &Path) -> Result<MshMesh, IoError> {
         }
     }
     let kind = kind.ok_or_else(|| IoError::invalid(path, "contains no tetrahedra"))?;
+    // Nodes no tetrahedron uses (say, of a surface saved in the same file)
+    // carry nothing of the body: left with DOFs, they made every static
+    // system singular.
+    let mut used = vec![false; points.len()];
+    for &i in &cells {
+        used[i] = true;
+    }
+    let unused_nodes = used.iter().filter(|&&u| !u).count();
+    if unused_nodes > 0 {
+        let mut renumbered = vec![usize::MAX; points.len()];
+        let mut kept = Vec::with_capacity(points.len() - unused_nodes);
+        for (i, p) in points.iter().enumerate() {
+            if used[i] {
+                renumbered[i] = kept.len();
+                kept.push(*p);
+            }
+        }
+        for c in &mut cells {
+            *c = renumbered[*c];
+        }
+        node_index.retain(|_, i| {
+            *i = renumbered[*i];
+            *i != usize::MAX
+        });
+        points = kept;
+    }
     let mut mesh = TetMesh {
         kind,
         nodes: points,
@@ -260,8 +298,91 @@ pub fn parse_msh(bytes: &[u8], path: &Path) -> Result<MshMesh, IoError> {
         physical_names: physical_names(path, bytes)?,
         element_entity,
         entity_physical,
-        straightened,
+        notes: MeshNotes {
+            straightened,
+            unused_nodes,
+        },
     })
+}
+
+/// The file's bytes with the `$Nodes` header's largest node tag one higher,
+/// so that mshio keeps every block's node tags: it drops them when the tags
+/// are min..=max without gaps (max − min = count − 1), and nodes are then
+/// numbered in block order, which is the tags' order only when the blocks
+/// and the tags within them come in ascending order (a file with block
+/// tags 4 5, then 1 2 3, was read with its nodes renumbered: wrong
+/// coordinates at every element). `None` where the header is not where the
+/// format puts it (mshio then reads the file as it is, or names its fault).
+fn with_node_tags_kept(bytes: &[u8]) -> Option<Vec<u8>> {
+    let format_at = find(bytes, b"$MeshFormat")? + b"$MeshFormat".len();
+    let format_line = bytes[format_at..]
+        .split(|&b| b == b'\n')
+        .find(|l| !l.iter().all(u8::is_ascii_whitespace))?;
+    let format = std::str::from_utf8(format_line).ok()?;
+    let mut fields = format.split_whitespace().skip(1);
+    let binary = fields.next()? == "1";
+    let size: usize = fields.next()?.parse().ok()?;
+    // The section after the (binary) entities: its header's four numbers
+    // start on the line after `$Nodes`.
+    let after = find(bytes, b"$EndEntities").unwrap_or(format_at);
+    let nodes = after + find(&bytes[after..], b"$Nodes")? + b"$Nodes".len();
+    let start = nodes + bytes[nodes..].iter().position(|&b| b == b'\n')? + 1;
+    if binary {
+        // One int (1) after the format line gives the byte order.
+        let one_at = format_at + find(&bytes[format_at..], format_line)? + format_line.len() + 1;
+        let little = *bytes.get(one_at)? == 1;
+        let field = bytes.get(start + 3 * size..start + 4 * size)?;
+        let mut out = bytes.to_vec();
+        let slot = &mut out[start + 3 * size..start + 4 * size];
+        match size {
+            8 => {
+                let raw: [u8; 8] = field.try_into().ok()?;
+                let max = if little {
+                    u64::from_le_bytes(raw)
+                } else {
+                    u64::from_be_bytes(raw)
+                };
+                let next = max.checked_add(1)?;
+                slot.copy_from_slice(&if little {
+                    next.to_le_bytes()
+                } else {
+                    next.to_be_bytes()
+                });
+            }
+            4 => {
+                let raw: [u8; 4] = field.try_into().ok()?;
+                let max = if little {
+                    u32::from_le_bytes(raw)
+                } else {
+                    u32::from_be_bytes(raw)
+                };
+                let next = max.checked_add(1)?;
+                slot.copy_from_slice(&if little {
+                    next.to_le_bytes()
+                } else {
+                    next.to_be_bytes()
+                });
+            }
+            _ => return None,
+        }
+        Some(out)
+    } else {
+        let end = start + bytes[start..].iter().position(|&b| b == b'\n')?;
+        let line = std::str::from_utf8(&bytes[start..end]).ok()?;
+        let numbers: Vec<u64> = line
+            .split_whitespace()
+            .map(|w| w.parse().ok())
+            .collect::<Option<_>>()?;
+        let [blocks, count, min, max] = numbers[..] else {
+            return None;
+        };
+        let header = format!("{blocks} {count} {min} {}", max.checked_add(1)?);
+        let mut out = Vec::with_capacity(bytes.len() + 2);
+        out.extend_from_slice(&bytes[..start]);
+        out.extend_from_slice(header.as_bytes());
+        out.extend_from_slice(&bytes[end..]);
+        Some(out)
+    }
 }
 
 fn find(haystack: &[u8], needle: &[u8]) -> Option<usize> {
@@ -427,6 +548,86 @@ $EndElements
         assert_eq!(m.elements_in_physical(7), vec![0, 1]);
     }
 
+    /// Node tags 1..=5 without gaps, their blocks and the tags within a
+    /// block out of order: the same two tets as [`TWO_TETS`] (tags 1 5 10
+    /// 11 20 there, 1 2 3 4 5 here).
+    const DENSE_TAGS_OUT_OF_ORDER: &str = r#"$MeshFormat
+4.1 0 8
+$EndMeshFormat
+$Nodes
+2 5 1 5
+3 2 0 2
+5
+4
+1 1 1
+0 0 1
+3 1 0 3
+3
+1
+2
+0 1 0
+0 0 0
+1 0 0
+$EndNodes
+$Elements
+1 2 1 2
+3 1 4 2
+1 1 2 3 4
+2 2 4 3 5
+$EndElements
+"#;
+
+    #[test]
+    fn node_tags_without_gaps_in_any_block_order_keep_their_coordinates() {
+        let dir = tempfile::tempdir().unwrap();
+        let m = read_msh(&write(&dir, DENSE_TAGS_OUT_OF_ORDER)).unwrap();
+        let want = [
+            (1, [0.0, 0.0, 0.0]),
+            (2, [1.0, 0.0, 0.0]),
+            (3, [0.0, 1.0, 0.0]),
+            (4, [0.0, 0.0, 1.0]),
+            (5, [1.0, 1.0, 1.0]),
+        ];
+        for (tag, x) in want {
+            assert_eq!(
+                m.mesh.nodes[m.node_index[&tag]],
+                Point3::from(x),
+                "tag {tag}"
+            );
+        }
+        let sparse = read_msh(&write(&dir, TWO_TETS)).unwrap();
+        let volumes = |m: &MshMesh| (0..2).map(|e| m.mesh.volume(e)).collect::<Vec<_>>();
+        assert_eq!(volumes(&m), volumes(&sparse));
+        // The binary header's largest tag is raised in place, byte order kept.
+        let binary = std::fs::read(fixture("gmsh_cube_tet4_binary.msh")).unwrap();
+        let raised = with_node_tags_kept(&binary).unwrap();
+        assert_eq!(raised.len(), binary.len());
+        let at = (0..binary.len()).find(|&i| binary[i] != raised[i]).unwrap();
+        assert_eq!(raised[at], binary[at] + 1);
+        assert!(binary[at + 1..] == raised[at + 1..]);
+    }
+
+    #[test]
+    fn nodes_no_tetrahedron_uses_are_left_out() {
+        // TWO_TETS with a sixth node (tag 7) in a block of its own, used by
+        // no element.
+        let text = TWO_TETS
+            .replace(
+                "$Nodes\n1 5 1 20\n",
+                "$Nodes\n2 6 1 20\n0 9 0 1\n7\n5 5 5\n",
+            )
+            .replace("$Entities\n0 0 1 1\n", "$Entities\n1 0 1 1\n9 5 5 5 0\n");
+        let dir = tempfile::tempdir().unwrap();
+        let m = read_msh(&write(&dir, &text)).unwrap();
+        let plain = read_msh(&write(&dir, TWO_TETS)).unwrap();
+        assert_eq!(m.notes.unused_nodes, 1);
+        assert_eq!(plain.notes.unused_nodes, 0);
+        assert_eq!(m.mesh.nodes, plain.mesh.nodes);
+        assert_eq!(m.mesh.cells, plain.mesh.cells);
+        assert_eq!(m.node_index, plain.node_index);
+        assert!(!m.node_index.contains_key(&7));
+    }
+
     fn tet_is_negative(m: &TetMesh, v: [usize; 4]) -> bool {
         crate::mesh::tet_volume(&v.map(|i| m.nodes[i])) < 0.0
     }
@@ -483,8 +684,10 @@ $EndElements
         // on the cylinder) and its twin with `Mesh.SecondOrderLinear = 1`.
         let curved = read_msh(&fixture("gmsh_cylinder_tet10_curved.msh")).unwrap();
         let straight = read_msh(&fixture("gmsh_cylinder_tet10_straight.msh")).unwrap();
-        assert!(curved.straightened.mid_nodes > 0 && curved.straightened.largest > 1e-4);
-        assert_eq!(straight.straightened, Straightened::default());
+        assert!(
+            curved.notes.straightened.mid_nodes > 0 && curved.notes.straightened.largest > 1e-4
+        );
+        assert_eq!(straight.notes, MeshNotes::default());
         assert_midnodes_on_edges(&curved.mesh, 1e-15);
         assert_eq!(curved.mesh.cells, straight.mesh.cells);
         for (p, q) in curved.mesh.nodes.iter().zip(&straight.mesh.nodes) {
