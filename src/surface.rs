@@ -706,21 +706,7 @@ fn read_msh_triangles(path: &Path) -> Result<TriangleSurface, SurfaceError> {
         file: path.to_path_buf(),
         source,
     })?;
-    let parsed = std::panic::catch_unwind(|| {
-        mshio::parse_msh_bytes(&bytes).map_err(|e| {
-            let text = e.to_string();
-            text.lines()
-                .find(|l| !l.trim().is_empty())
-                .unwrap_or("")
-                .trim()
-                .to_string()
-        })
-    });
-    let file = match parsed {
-        Ok(Ok(f)) => f,
-        Ok(Err(m)) => return Err(invalid(format!("not a readable MSH 4.1 file: {m}"))),
-        Err(_) => return Err(invalid("not a readable MSH 4.1 file".into())),
-    };
+    let file = crate::io::msh::parse_file(&bytes).map_err(invalid)?;
     let nodes = file
         .data
         .nodes
@@ -731,29 +717,7 @@ fn read_msh_triangles(path: &Path) -> Result<TriangleSurface, SurfaceError> {
         .elements
         .as_ref()
         .ok_or_else(|| invalid("no $Elements section".into()))?;
-    let mut vertices = Vec::new();
-    let mut index: HashMap<u64, usize> = HashMap::new();
-    let mut next_tag = nodes.min_node_tag;
-    for block in &nodes.node_blocks {
-        let n = block.nodes.len();
-        let tags: Vec<u64> = match &block.node_tags {
-            Some(map) => {
-                let mut tags = vec![0; n];
-                for (&tag, &i) in map {
-                    if i < n {
-                        tags[i] = tag;
-                    }
-                }
-                tags
-            }
-            None => (next_tag..next_tag.saturating_add(n as u64)).collect(),
-        };
-        next_tag = next_tag.saturating_add(n as u64);
-        for (tag, p) in tags.into_iter().zip(&block.nodes) {
-            index.insert(tag, vertices.len());
-            vertices.push(Point3::new(p.x, p.y, p.z));
-        }
-    }
+    let (vertices, index) = crate::io::msh::read_nodes(nodes).map_err(invalid)?;
     let mut triangles = Vec::new();
     for block in &elements.element_blocks {
         if block.element_type != mshio::ElementType::Tri3 {

@@ -30,14 +30,23 @@ fn patch_triangles(p: &PlanarPatch, n: usize) -> (Vec<Point3<f64>>, Vec<[usize; 
     common::patch_triangles(p.origin, p.u, p.v, n)
 }
 
-fn gmsh_triangles(v: &[Point3<f64>], tris: &[[usize; 3]]) -> String {
+/// The triangles as a gmsh MSH 4.1 ASCII file, node tags 1..n; `shifted`:
+/// the nodes listed from tag 2 on, tag 1 last (tags without gaps in another
+/// order than the file's, which mshio does not keep by itself; a reversed
+/// list would map a patch's grid onto itself).
+fn gmsh_triangles(v: &[Point3<f64>], tris: &[[usize; 3]], shifted: bool) -> String {
     let mut s = String::from("$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n");
     s += &format!("1 {} 1 {}\n2 1 0 {}\n", v.len(), v.len(), v.len());
-    for i in 0..v.len() {
+    let order: Vec<usize> = if shifted {
+        (1..v.len()).chain([0]).collect()
+    } else {
+        (0..v.len()).collect()
+    };
+    for &i in &order {
         s += &format!("{}\n", i + 1);
     }
-    for p in v {
-        s += &format!("{:e} {:e} {:e}\n", p.x, p.y, p.z);
+    for &i in &order {
+        s += &format!("{:e} {:e} {:e}\n", v[i].x, v[i].y, v[i].z);
     }
     s += &format!(
         "$EndNodes\n$Elements\n1 {} 1 {}\n2 1 2 {}\n",
@@ -79,8 +88,10 @@ fn a_planar_patch_written_as_triangles_equals_the_patch() {
         let mut f = std::fs::File::create(&binary).unwrap();
         stl_io::write_stl(&mut f, stl.iter()).unwrap();
         let msh = dir.path().join(format!("patch{n}.msh"));
-        std::fs::write(&msh, gmsh_triangles(&v, &tris)).unwrap();
-        files.extend([ascii, binary, msh]);
+        std::fs::write(&msh, gmsh_triangles(&v, &tris, false)).unwrap();
+        let shifted = dir.path().join(format!("patch{n}_shifted.msh"));
+        std::fs::write(&shifted, gmsh_triangles(&v, &tris, true)).unwrap();
+        files.extend([ascii, binary, msh, shifted]);
     }
     let d_ref = {
         let m = model(

@@ -84,40 +84,21 @@ const GMSH_TET4: [usize; 4] = [0, 1, 2, 3];
 /// Reads the tetrahedra of a gmsh MSH 4.1 file (ASCII or binary).
 ///
 /// Nodes keep the file's order and are renumbered 0..n (`node_index` maps
-/// back); every node of the file is kept, also one no tet uses. Errors: no
-/// tetrahedra, 4- and 10-node tets mixed, a referenced node tag that is
-/// missing, a node tag given twice, a non-finite coordinate, a tet of zero
-/// volume, a volume element other than a tet.
+/// back); nodes no tet uses are left out, Tet10 mid-nodes off their edges
+/// put at the midpoints ([`MshMesh::notes`]). Errors: no tetrahedra, 4- and
+/// 10-node tets mixed, a referenced node tag that is missing, a node tag
+/// given twice, a non-finite coordinate, a tet of zero volume, a volume
+/// element other than a tet, a node that is the mid-node of two edges.
 ///
-/// With dense tags (1..N without gaps) gmsh does not need to store them and
-/// `mshio` assumes they run in file order, as gmsh writes them.
+/// Node tags are read in any order, with or without gaps
+/// ([`with_node_tags_kept`]).
 pub fn read_msh(path: &Path) -> Result<MshMesh, IoError> {
     parse_msh(&read_bytes(path)?, path)
 }
 
 /// [`read_msh`] on the bytes of a file already read; `path` names it in errors.
 pub fn parse_msh(bytes: &[u8], path: &Path) -> Result<MshMesh, IoError> {
-    // mshio is a third-party parser of untrusted bytes: a panic in it (say, an
-    // arithmetic overflow on a hostile header) becomes an error naming the file.
-    let tagged = with_node_tags_kept(bytes);
-    let bytes = tagged.as_deref().unwrap_or(bytes);
-    let parsed = std::panic::catch_unwind(|| {
-        mshio::parse_msh_bytes(bytes).map_err(|e| {
-            let text = e.to_string();
-            let first = text.lines().find(|l| !l.trim().is_empty()).unwrap_or("");
-            format!("not a readable MSH 4.1 file: {}", first.trim())
-        })
-    });
-    let file = match parsed {
-        Ok(Ok(file)) => file,
-        Ok(Err(message)) => return Err(IoError::invalid(path, message)),
-        Err(_) => {
-            return Err(IoError::invalid(
-                path,
-                "not a readable MSH 4.1 file (the parser gave up)",
-            ))
-        }
-    };
+    let file = parse_file(bytes).map_err(|message| IoError::invalid(path, message))?;
     if file.header.version < 4.1 || file.header.version >= 5.0 {
         return Err(IoError::unsupported(
             path,
@@ -134,49 +115,8 @@ pub fn parse_msh(bytes: &[u8], path: &Path) -> Result<MshMesh, IoError> {
         .elements
         .as_ref()
         .ok_or_else(|| IoError::invalid(path, "no $Elements section"))?;
-
-    let n_nodes = usize::try_from(nodes.num_nodes).unwrap_or(0);
-    let mut points = Vec::with_capacity(n_nodes.min(1 << 24));
-    let mut node_index: HashMap<u64, usize> = HashMap::with_capacity(n_nodes.min(1 << 24));
-    let mut next_tag = nodes.min_node_tag;
-    for block in &nodes.node_blocks {
-        let n = block.nodes.len();
-        let tags: Vec<u64> = match &block.node_tags {
-            Some(map) => {
-                if map.len() != n {
-                    return Err(IoError::invalid(
-                        path,
-                        format!(
-                            "a node block of entity {} gives a node tag twice",
-                            block.entity_tag
-                        ),
-                    ));
-                }
-                let mut tags = vec![0; n];
-                for (&tag, &i) in map {
-                    tags[i] = tag;
-                }
-                tags
-            }
-            None => (next_tag..next_tag.saturating_add(n as u64)).collect(),
-        };
-        next_tag = next_tag.saturating_add(n as u64);
-        for (tag, p) in tags.into_iter().zip(&block.nodes) {
-            if !(p.x.is_finite() && p.y.is_finite() && p.z.is_finite()) {
-                return Err(IoError::invalid(
-                    path,
-                    format!("node {tag} has a non-finite coordinate"),
-                ));
-            }
-            if node_index.insert(tag, points.len()).is_some() {
-                return Err(IoError::invalid(
-                    path,
-                    format!("node tag {tag} appears twice"),
-                ));
-            }
-            points.push(Point3::new(p.x, p.y, p.z));
-        }
-    }
+    let (mut points, mut node_index) =
+        read_nodes(nodes).map_err(|message| IoError::invalid(path, message))?;
 
     let mut kind = None;
     let mut cells = Vec::new();
@@ -303,6 +243,68 @@ pub fn parse_msh(bytes: &[u8], path: &Path) -> Result<MshMesh, IoError> {
             unused_nodes,
         },
     })
+}
+
+/// mshio's parse of a file's bytes, its node tags kept
+/// ([`with_node_tags_kept`]); its failure, or a panic in it (a third-party
+/// parser of untrusted bytes: say, an arithmetic overflow on a hostile
+/// header), as one line.
+pub(crate) fn parse_file(bytes: &[u8]) -> Result<mshio::MshFile<u64, i32, f64>, String> {
+    let tagged = with_node_tags_kept(bytes);
+    let bytes = tagged.as_deref().unwrap_or(bytes);
+    let parsed = std::panic::catch_unwind(|| {
+        mshio::parse_msh_bytes(bytes).map_err(|e| {
+            let text = e.to_string();
+            let first = text.lines().find(|l| !l.trim().is_empty()).unwrap_or("");
+            format!("not a readable MSH 4.1 file: {}", first.trim())
+        })
+    });
+    match parsed {
+        Ok(result) => result,
+        Err(_) => Err("not a readable MSH 4.1 file (the parser gave up)".into()),
+    }
+}
+
+/// A file's nodes in file order and its node tag → index.
+pub(crate) type FileNodes = (Vec<Point3<f64>>, HashMap<u64, usize>);
+
+/// The [`FileNodes`] of a parsed file; a tag given twice or a non-finite
+/// coordinate is the error's one line.
+pub(crate) fn read_nodes(nodes: &mshio::Nodes<u64, i32, f64>) -> Result<FileNodes, String> {
+    let n_nodes = usize::try_from(nodes.num_nodes).unwrap_or(0);
+    let mut points = Vec::with_capacity(n_nodes.min(1 << 24));
+    let mut node_index: HashMap<u64, usize> = HashMap::with_capacity(n_nodes.min(1 << 24));
+    let mut next_tag = nodes.min_node_tag;
+    for block in &nodes.node_blocks {
+        let n = block.nodes.len();
+        let tags: Vec<u64> = match &block.node_tags {
+            Some(map) => {
+                if map.len() != n || map.values().any(|&i| i >= n) {
+                    return Err(format!(
+                        "a node block of entity {} gives a node tag twice",
+                        block.entity_tag
+                    ));
+                }
+                let mut tags = vec![0; n];
+                for (&tag, &i) in map {
+                    tags[i] = tag;
+                }
+                tags
+            }
+            None => (next_tag..next_tag.saturating_add(n as u64)).collect(),
+        };
+        next_tag = next_tag.saturating_add(n as u64);
+        for (tag, p) in tags.into_iter().zip(&block.nodes) {
+            if !(p.x.is_finite() && p.y.is_finite() && p.z.is_finite()) {
+                return Err(format!("node {tag} has a non-finite coordinate"));
+            }
+            if node_index.insert(tag, points.len()).is_some() {
+                return Err(format!("node tag {tag} appears twice"));
+            }
+            points.push(Point3::new(p.x, p.y, p.z));
+        }
+    }
+    Ok((points, node_index))
 }
 
 /// The file's bytes with the `$Nodes` header's largest node tag one higher,
