@@ -630,8 +630,65 @@ fn read_stl(path: &Path) -> Result<TriangleSurface, SurfaceError> {
         file: path.to_path_buf(),
         source,
     };
-    let mut file = std::fs::File::open(path).map_err(read_err)?;
-    let mesh = stl_io::read_stl(&mut file).map_err(|e| {
+    let bytes = std::fs::read(path).map_err(read_err)?;
+    // stl_io reads the first solid of an ASCII file and stops: each solid
+    // is read on its own, and the vertices they share are joined.
+    let mut single: Vec<stl_io::Vertex> = Vec::new();
+    let mut joined: HashMap<[u32; 3], usize> = HashMap::new();
+    let mut triangles: Vec<[usize; 3]> = Vec::new();
+    for solid in ascii_solids(&bytes) {
+        let mesh = read_one_stl(path, solid)?;
+        let index: Vec<usize> = mesh
+            .vertices
+            .iter()
+            .map(|v| {
+                *joined.entry(v.0.map(f32::to_bits)).or_insert_with(|| {
+                    single.push(*v);
+                    single.len() - 1
+                })
+            })
+            .collect();
+        triangles.extend(mesh.faces.iter().map(|f| f.vertices.map(|i| index[i])));
+    }
+    let mut vertices: Vec<Point3<f64>> = single
+        .iter()
+        .map(|v| Point3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2])))
+        .collect();
+    if let Some(exact) = ascii_vertices_f64(path, &single, &triangles) {
+        vertices = exact;
+    }
+    TriangleSurface::new(vertices, triangles, path)
+}
+
+/// The solids of an ASCII STL (`solid` … `endsolid`, one after another),
+/// each from its `solid` line to its `endsolid` line; the whole file where
+/// it holds one, or is binary.
+fn ascii_solids(bytes: &[u8]) -> Vec<&[u8]> {
+    let whole = vec![bytes];
+    let Ok(text) = std::str::from_utf8(bytes) else {
+        return whole;
+    };
+    if !text.trim_start().starts_with("solid") {
+        return whole;
+    }
+    let mut solids = Vec::new();
+    let (mut start, mut at) = (0, 0);
+    for line in text.split_inclusive('\n') {
+        at += line.len();
+        if line.trim_start().starts_with("endsolid") {
+            solids.push(&bytes[start..at]);
+            start = at;
+        }
+    }
+    if solids.len() < 2 || !text[start..].trim().is_empty() {
+        return whole;
+    }
+    solids
+}
+
+/// One solid (or a binary file) through stl_io, its faults in our words.
+fn read_one_stl(path: &Path, bytes: &[u8]) -> Result<stl_io::IndexedMesh, SurfaceError> {
+    stl_io::read_stl(&mut std::io::Cursor::new(bytes)).map_err(|e| {
         let empty = std::fs::metadata(path).is_ok_and(|m| m.len() == 0);
         let message = if empty {
             "the file is empty".to_string()
@@ -648,17 +705,7 @@ fn read_stl(path: &Path) -> Result<TriangleSurface, SurfaceError> {
             file: path.to_path_buf(),
             message,
         }
-    })?;
-    let mut vertices: Vec<Point3<f64>> = mesh
-        .vertices
-        .iter()
-        .map(|v| Point3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2])))
-        .collect();
-    let triangles: Vec<[usize; 3]> = mesh.faces.iter().map(|f| f.vertices).collect();
-    if let Some(exact) = ascii_vertices_f64(path, &mesh.vertices, &triangles) {
-        vertices = exact;
-    }
-    TriangleSurface::new(vertices, triangles, path)
+    })
 }
 
 /// An ASCII STL's vertices at the precision written (`stl_io` reads single

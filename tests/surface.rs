@@ -91,7 +91,15 @@ fn a_planar_patch_written_as_triangles_equals_the_patch() {
         std::fs::write(&msh, gmsh_triangles(&v, &tris, false)).unwrap();
         let shifted = dir.path().join(format!("patch{n}_shifted.msh"));
         std::fs::write(&shifted, gmsh_triangles(&v, &tris, true)).unwrap();
-        files.extend([ascii, binary, msh, shifted]);
+        // Two solids in one ASCII file (stl_io alone reads the first).
+        let half = tris.len() / 2;
+        let two = dir.path().join(format!("patch{n}_two_solids.stl"));
+        std::fs::write(
+            &two,
+            ascii_stl(&v, &tris[..half]) + &ascii_stl(&v, &tris[half..]),
+        )
+        .unwrap();
+        files.extend([ascii, binary, msh, shifted, two]);
     }
     let d_ref = {
         let m = model(
