@@ -743,7 +743,8 @@ fn ascii_vertices_f64(
     exact.into_iter().collect()
 }
 
-/// The 3-node triangles of a gmsh MSH 4.1 file (every entity), through `mshio`.
+/// The triangles of a gmsh MSH 4.1 file (every entity; quadrangles split in
+/// two, elements of higher order by their corners), through `mshio`.
 fn read_msh_triangles(path: &Path) -> Result<TriangleSurface, SurfaceError> {
     let invalid = |message: String| SurfaceError::Invalid {
         file: path.to_path_buf(),
@@ -765,28 +766,38 @@ fn read_msh_triangles(path: &Path) -> Result<TriangleSurface, SurfaceError> {
         .as_ref()
         .ok_or_else(|| invalid("no $Elements section".into()))?;
     let (vertices, index) = crate::io::msh::read_nodes(nodes).map_err(invalid)?;
+    use mshio::ElementType as T;
     let mut triangles = Vec::new();
     for block in &elements.element_blocks {
-        if block.element_type != mshio::ElementType::Tri3 {
-            continue;
-        }
+        // Triangles and quadrangles of any order by their corners (gmsh
+        // lists them first): a second-order incision is taken flat between
+        // its vertices, as Tet10 elements are straight-sided; a quadrangle
+        // is split along its diagonal 0–2.
+        let corners = match block.element_type {
+            T::Tri3 | T::Tri6 | T::Tri9 | T::Tri10 => 3,
+            T::Qua4 | T::Qua8 | T::Qua9 => 4,
+            _ => continue,
+        };
         for el in &block.elements {
-            let mut tri = [0; 3];
-            for k in 0..3 {
+            let mut c = [0; 4];
+            for k in 0..corners {
                 let tag = *el.nodes.get(k).ok_or_else(|| {
                     invalid(format!(
-                        "triangle {} has fewer than 3 nodes",
+                        "surface element {} has fewer than {corners} nodes",
                         el.element_tag
                     ))
                 })?;
-                tri[k] = *index.get(&tag).ok_or_else(|| {
+                c[k] = *index.get(&tag).ok_or_else(|| {
                     invalid(format!(
-                        "triangle {} references missing node {tag}",
+                        "surface element {} references missing node {tag}",
                         el.element_tag
                     ))
                 })?;
             }
-            triangles.push(tri);
+            triangles.push([c[0], c[1], c[2]]);
+            if corners == 4 {
+                triangles.push([c[0], c[2], c[3]]);
+            }
         }
     }
     TriangleSurface::new(vertices, triangles, path)

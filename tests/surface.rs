@@ -35,6 +35,13 @@ fn patch_triangles(p: &PlanarPatch, n: usize) -> (Vec<Point3<f64>>, Vec<[usize; 
 /// order than the file's, which mshio does not keep by itself; a reversed
 /// list would map a patch's grid onto itself).
 fn gmsh_triangles(v: &[Point3<f64>], tris: &[[usize; 3]], shifted: bool) -> String {
+    let elements: Vec<Vec<usize>> = tris.iter().map(|t| t.to_vec()).collect();
+    gmsh_elements(v, &elements, 2, shifted)
+}
+
+/// `elements` (node indices into `v`) as one block of gmsh element type
+/// `kind` (2: 3-node triangle, 3: 4-node quadrangle, 9: 6-node triangle).
+fn gmsh_elements(v: &[Point3<f64>], elements: &[Vec<usize>], kind: u32, shifted: bool) -> String {
     let mut s = String::from("$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n");
     s += &format!("1 {} 1 {}\n2 1 0 {}\n", v.len(), v.len(), v.len());
     let order: Vec<usize> = if shifted {
@@ -49,16 +56,55 @@ fn gmsh_triangles(v: &[Point3<f64>], tris: &[[usize; 3]], shifted: bool) -> Stri
         s += &format!("{:e} {:e} {:e}\n", v[i].x, v[i].y, v[i].z);
     }
     s += &format!(
-        "$EndNodes\n$Elements\n1 {} 1 {}\n2 1 2 {}\n",
-        tris.len(),
-        tris.len(),
-        tris.len()
+        "$EndNodes\n$Elements\n1 {} 1 {}\n2 1 {kind} {}\n",
+        elements.len(),
+        elements.len(),
+        elements.len()
     );
-    for (k, t) in tris.iter().enumerate() {
-        s += &format!("{} {} {} {}\n", k + 1, t[0] + 1, t[1] + 1, t[2] + 1);
+    for (k, e) in elements.iter().enumerate() {
+        s += &format!("{}", k + 1);
+        for i in e {
+            s += &format!(" {}", i + 1);
+        }
+        s += "\n";
     }
     s += "$EndElements\n";
     s
+}
+
+/// The patch's triangles pairwise as quadrangles (a, b, c) + (a, c, d) →
+/// (a, b, c, d), and each triangle with its three edge mid-nodes (shared
+/// between triangles, as gmsh writes them): `(quads, nodes, tri6)`.
+#[allow(clippy::type_complexity)]
+fn quads_and_tri6(
+    v: &[Point3<f64>],
+    tris: &[[usize; 3]],
+) -> (Vec<Vec<usize>>, Vec<Point3<f64>>, Vec<Vec<usize>>) {
+    let quads = tris
+        .chunks_exact(2)
+        .map(|p| {
+            assert_eq!((p[0][0], p[0][2]), (p[1][0], p[1][1]));
+            vec![p[0][0], p[0][1], p[0][2], p[1][2]]
+        })
+        .collect();
+    let mut nodes = v.to_vec();
+    let mut mid = std::collections::HashMap::new();
+    let tri6 = tris
+        .iter()
+        .map(|t| {
+            let mut e = t.to_vec();
+            for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+                let key = (a.min(b), a.max(b));
+                let id = *mid.entry(key).or_insert_with(|| {
+                    nodes.push(Point3::from((v[a].coords + v[b].coords) * 0.5));
+                    nodes.len() - 1
+                });
+                e.push(id);
+            }
+            e
+        })
+        .collect();
+    (quads, nodes, tri6)
 }
 
 #[test]
@@ -99,7 +145,13 @@ fn a_planar_patch_written_as_triangles_equals_the_patch() {
             ascii_stl(&v, &tris[..half]) + &ascii_stl(&v, &tris[half..]),
         )
         .unwrap();
-        files.extend([ascii, binary, msh, shifted, two]);
+        // Quadrangles, and 6-node triangles: taken by their corners.
+        let (quads, nodes6, tri6) = quads_and_tri6(&v, &tris);
+        let quad = dir.path().join(format!("patch{n}_quad.msh"));
+        std::fs::write(&quad, gmsh_elements(&v, &quads, 3, false)).unwrap();
+        let six = dir.path().join(format!("patch{n}_tri6.msh"));
+        std::fs::write(&six, gmsh_elements(&nodes6, &tri6, 9, false)).unwrap();
+        files.extend([ascii, binary, msh, shifted, two, quad, six]);
     }
     let d_ref = {
         let m = model(
