@@ -341,39 +341,25 @@ fn with_node_tags_kept(bytes: &[u8]) -> Option<Vec<u8>> {
         // One int (1) after the format line gives the byte order.
         let one_at = format_at + find(&bytes[format_at..], format_line)? + format_line.len() + 1;
         let little = *bytes.get(one_at)? == 1;
-        let field = bytes.get(start + 3 * size..start + 4 * size)?;
+        if !matches!(size, 4 | 8) {
+            return None;
+        }
         let mut out = bytes.to_vec();
-        let slot = &mut out[start + 3 * size..start + 4 * size];
-        match size {
-            8 => {
-                let raw: [u8; 8] = field.try_into().ok()?;
-                let max = if little {
-                    u64::from_le_bytes(raw)
-                } else {
-                    u64::from_be_bytes(raw)
-                };
-                let next = max.checked_add(1)?;
-                slot.copy_from_slice(&if little {
-                    next.to_le_bytes()
-                } else {
-                    next.to_be_bytes()
-                });
-            }
-            4 => {
-                let raw: [u8; 4] = field.try_into().ok()?;
-                let max = if little {
-                    u32::from_le_bytes(raw)
-                } else {
-                    u32::from_be_bytes(raw)
-                };
-                let next = max.checked_add(1)?;
-                slot.copy_from_slice(&if little {
-                    next.to_le_bytes()
-                } else {
-                    next.to_be_bytes()
-                });
-            }
-            _ => return None,
+        let slot = out.get_mut(start + 3 * size..start + 4 * size)?;
+        // + 1 from the least significant byte on, carrying while a byte overflows.
+        if !little {
+            slot.reverse();
+        }
+        let overflow = slot.iter_mut().all(|b| {
+            let (sum, carry) = b.overflowing_add(1);
+            *b = sum;
+            carry
+        });
+        if !little {
+            slot.reverse();
+        }
+        if overflow {
+            return None;
         }
         Some(out)
     } else {
@@ -615,6 +601,34 @@ $EndElements
         let at = (0..binary.len()).find(|&i| binary[i] != raised[i]).unwrap();
         assert_eq!(raised[at], binary[at] + 1);
         assert!(binary[at + 1..] == raised[at + 1..]);
+        // With a carry, in either byte order: 255 → 256.
+        for little in [true, false] {
+            let mut head = b"$MeshFormat\n4.1 1 8\n".to_vec();
+            let one = if little {
+                1i32.to_le_bytes()
+            } else {
+                1i32.to_be_bytes()
+            };
+            head.extend_from_slice(&one);
+            head.extend_from_slice(b"\n$EndMeshFormat\n$Nodes\n");
+            let at = head.len();
+            for v in [1u64, 255, 1, 255] {
+                head.extend(if little {
+                    v.to_le_bytes()
+                } else {
+                    v.to_be_bytes()
+                });
+            }
+            let raised = with_node_tags_kept(&head).unwrap();
+            let max: [u8; 8] = raised[at + 24..at + 32].try_into().unwrap();
+            let max = if little {
+                u64::from_le_bytes(max)
+            } else {
+                u64::from_be_bytes(max)
+            };
+            assert_eq!(max, 256, "little-endian {little}");
+            assert_eq!(raised[..at + 24], head[..at + 24]);
+        }
     }
 
     #[test]
