@@ -677,6 +677,16 @@ fn bad_arguments_give_one_line_naming_them() {
     assert!(String::from_utf8_lossy(&help.stdout).contains("Usage: xfem-cut"));
 }
 
+/// [`GOOD`] on the Tet10 gmsh mesh `mesh` (the cylinder fixtures: radius
+/// 0.03, height 0.1, its bottom fixed), with these probe points.
+fn on_mesh(mesh: &str, probes: &str) -> String {
+    GOOD.replace(
+        "box = [[0.0, 0.0, 0.0], [0.03, 0.06, 0.2]]\nlevels = [[1, 2, 4]]",
+        &format!("mesh = [\"{mesh}\"]\nelement = \"tet10\""),
+    )
+    .replace("[[0.0, 0.03, 0.2], [0.03, 0.06, 0.2]]", probes)
+}
+
 /// A Tet10 mesh of a curved body (gmsh's order 2 puts the mid-nodes of the
 /// cylinder's boundary edges on the cylinder) solves as its straight-sided
 /// twin (the same mesh written with `Mesh.SecondOrderLinear = 1`),
@@ -690,32 +700,17 @@ fn bad_arguments_give_one_line_naming_them() {
 fn a_curved_tet10_mesh_solves_as_its_straight_sided_twin() {
     let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures");
     let run = |name: &str| {
-        let text = format!(
-            r#"
-name = "cylinder"
-[body]
-mesh = ["{}"]
-element = "tet10"
-[material]
-young = 3.0e5
-poisson = 0.35
-density = 1070.0
-[[cut]]
-origin = [-0.05, -0.05, 0.0537]
-u = [0.061, 0.0, 0.02]
-v = [0.0, 0.1, 0.0]
-[[fix]]
-min = [-inf, -inf, 0.0]
-max = [inf, inf, 0.0]
-[gravity]
-acceleration = [9.81, 0.0, 0.0]
-[analysis]
-type = "static"
-formulation = "corotational"
-[[probe]]
-points = [[0.0, 0.0, 0.1], [0.02, 0.0, 0.1], [-0.02, 0.0, 0.1], [0.0, 0.0, 0.0537]]
-"#,
-            fixtures.join(name).display()
+        let text = on_mesh(
+            &fixtures.join(name).display().to_string(),
+            "[[0.0, 0.0, 0.1], [0.02, 0.0, 0.1], [-0.02, 0.0, 0.1], [0.0, 0.0, 0.0537]]",
+        )
+        .replace(
+            "[[fix]]",
+            "[[cut]]\norigin = [-0.05, -0.05, 0.0537]\nu = [0.061, 0.0, 0.02]\nv = [0.0, 0.1, 0.0]\n[[fix]]",
+        )
+        .replace(
+            "type = \"static\"",
+            "type = \"static\"\nformulation = \"corotational\"",
         );
         let (out, dir) = run_output(&text);
         assert!(
@@ -775,18 +770,7 @@ fn a_node_no_tetrahedron_uses_is_left_out() {
         .unwrap();
         let case = dir.path().join(format!("{mesh}.toml"));
         let out = dir.path().join(format!("{mesh}.out"));
-        std::fs::write(
-            &case,
-            GOOD.replace(
-                "box = [[0.0, 0.0, 0.0], [0.03, 0.06, 0.2]]\nlevels = [[1, 2, 4]]",
-                &format!("mesh = [\"{mesh}\"]\nelement = \"tet10\""),
-            )
-            .replace(
-                "[[0.0, 0.03, 0.2], [0.03, 0.06, 0.2]]",
-                "[[0.0, 0.0, 0.1], [0.02, 0.0, 0.05]]",
-            ),
-        )
-        .unwrap();
+        std::fs::write(&case, on_mesh(mesh, "[[0.0, 0.0, 0.1], [0.02, 0.0, 0.05]]")).unwrap();
         let run = Command::new(bin())
             .arg("run")
             .arg(&case)
