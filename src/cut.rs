@@ -856,16 +856,21 @@ fn lift_distance(snap: f64) -> f64 {
 /// cut whole or not at all, and held no front: the cut would end
 /// at a node line up to an element away from where it is given. Its nodes
 /// (Tet10: the mid-nodes of the edges in the surface from them too) are
-/// moved [`lift_distance`] · h off the surface, on the side they came from
-/// (exactly on it: the + side), so the elements on the other side are
-/// crossed, a sliver of them cut, and the front passes through them as
-/// through any front element. Faces the front does not cross stay in the
-/// surface (a cut along a node layer opens the mesh's faces exactly).
+/// moved [`lift_distance`] · h off the surface to its + side, so the
+/// elements on the − side are crossed, a sliver of them cut, and the front
+/// passes through them as through any front element. Faces the front does
+/// not cross stay in the surface (a cut along a node layer opens the mesh's
+/// faces exactly). Every node snapped onto the surface goes to the + side,
+/// whichever side of it within the snap it lay: a plane a hair off a node
+/// layer (single precision's 1e-8 h) then cuts as on the layer. (Lifted
+/// back to the side they came from, a plane 1e-8 h above the layer had the
+/// elements above it hold the front, not those below, and the tip moved
+/// 1 %; which side's elements hold it now changes at a snap above the layer,
+/// where the plane is no longer snapped.)
 fn lift_faces_the_front_crosses(
     mesh: &TetMesh,
     phi: &mut [f64],
     front_level: &[f64],
-    below: &[bool],
     h: &[f64],
     snap: f64,
 ) {
@@ -903,7 +908,7 @@ fn lift_faces_the_front_crosses(
     }
     let distance = lift_distance(snap);
     for (i, _) in lift.iter().enumerate().filter(|(_, &l)| l) {
-        phi[i] = if below[i] { -distance } else { distance } * h[i];
+        phi[i] = distance * h[i];
     }
 }
 
@@ -1087,10 +1092,6 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
     if boundary.is_empty() {
         far_sides_of_a_closed_surface(mesh, &far, &star_start, &star_list, &mut phi);
     }
-    // The sides of the nodes that snapping puts on the surface; within
-    // round-off of it (a patch and the same patch as triangles differ
-    // there): the + side, as on it.
-    let below: Vec<bool> = phi.iter().zip(&h).map(|(&p, hi)| p < -1e-12 * hi).collect();
     for (p, hi) in phi.iter_mut().zip(&h) {
         if p.abs() < snap * hi {
             *p = 0.0;
@@ -1102,7 +1103,7 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
         }
     }
     if front.is_some() {
-        lift_faces_the_front_crosses(mesh, &mut phi, &front_level, &below, &h, snap);
+        lift_faces_the_front_crosses(mesh, &mut phi, &front_level, &h, snap);
     }
     let mut front_element = vec![false; mesh.n_elements()];
     let node_side: Vec<i8> = phi.iter().map(|&p| if p >= 0.0 { 1 } else { -1 }).collect();
