@@ -1112,13 +1112,28 @@ pub fn project_tip_change_with(
 /// fits (ids in `new`, in the fit's order): every tip block of `new`, the
 /// Heaviside functions of nodes tip-enriched in `old`, and every other free
 /// function of the elements holding tip functions in `old` or `new`;
-/// `None` where nothing changed meaning (no tip front in either).
-fn fitted_functions(old: &Model, new: &Model) -> Option<Vec<usize>> {
+/// Without a tip front in either, the free functions of the elements whose
+/// field the mapping changed ([`changed_heaviside_elements`]). `None` where
+/// nothing changed.
+fn fitted_functions(old: &Model, new: &Model, state: &State, mapped: &State) -> Option<Vec<usize>> {
     let (Some(oc), Some(nc)) = (&old.cut, &new.cut) else {
         return None;
     };
     if oc.n_tip == 0 && nc.n_tip == 0 {
-        return None;
+        let changed = changed_heaviside_elements(old, new, state, mapped);
+        let mut marked = vec![false; new.n_shape];
+        let mut fitted = Vec::new();
+        for e in changed {
+            for &s in new.element_shapes(e) {
+                let s = s as usize;
+                let free = (0..3).all(|c| new.equation[3 * s + c] != crate::model::NONE);
+                if free && !marked[s] {
+                    marked[s] = true;
+                    fitted.push(s);
+                }
+            }
+        }
+        return (!fitted.is_empty()).then_some(fitted);
     }
     let n_nodes = new.mesh.n_nodes();
     let mut fitted = Vec::new();
@@ -1169,6 +1184,80 @@ fn fitted_functions(old: &Model, new: &Model) -> Option<Vec<usize>> {
     Some(fitted)
 }
 
+/// The elements whose field the mapping to `new` changed at an event
+/// without a tip front: those holding a node whose Heaviside enrichment was
+/// dropped, or whose cut changed (cells, sides), where the old field
+/// (`state`) and the mapped one differ at a field point by more than
+/// [`KEPT_FIELD`] of the largest DOF of d, v or a. A straight sweep only
+/// adds enrichment that starts at zero: none. A path's strip whose
+/// extension to the element faces turns with it (`front = "extend"`)
+/// drops enrichment and recuts elements: before, their DOFs were dropped
+/// and the field left as it fell (a Tet10 blade along a V-shaped path: the
+/// strain energy rose 2e4-fold at one event, and Newton failed later).
+fn changed_heaviside_elements(
+    old: &Model,
+    new: &Model,
+    state: &State,
+    mapped: &State,
+) -> Vec<usize> {
+    let (Some(oc), Some(nc)) = (&old.cut, &new.cut) else {
+        return Vec::new();
+    };
+    let dropped: Vec<bool> = oc
+        .enriched
+        .iter()
+        .zip(&nc.enriched)
+        .map(|(a, b)| a.is_some() && b.is_none())
+        .collect();
+    let scale = |x: &[f64]| x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let tol = [&state.d, &state.v, &state.a].map(|x| KEPT_FIELD * scale(x));
+    let value = |x: &[f64], ids: &[u32], vals: &[f64]| {
+        ids.iter()
+            .zip(vals)
+            .fold(Vector3::zeros(), |acc, (&s, &w)| {
+                let s = 3 * s as usize;
+                acc + Vector3::new(x[s], x[s + 1], x[s + 2]) * w
+            })
+    };
+    let mut points = Vec::new();
+    (0..new.mesh.n_elements())
+        .filter(|&e| {
+            let conn = new.mesh.element(e);
+            conn.iter().any(|&i| dropped[i])
+                || !same_element_model(&new.mesh, Some(oc), Some(nc), e)
+        })
+        .filter(|&e| {
+            let (ids, old_ids) = (new.element_shapes(e), old.element_shapes(e));
+            let (ev_new, ev_old) = (new.element_evaluator(e), old.element_evaluator(e));
+            new.field_points_into(e, &ev_new, &mut points);
+            let (mut vals, mut grads) = (vec![0.0; ids.len()], vec![Vector3::zeros(); ids.len()]);
+            let (mut old_vals, mut old_grads) = (
+                vec![0.0; old_ids.len()],
+                vec![Vector3::zeros(); old_ids.len()],
+            );
+            points.iter().any(|&(x, _, side)| {
+                ev_new.eval(&x, side, &mut vals, &mut grads);
+                ev_old.eval(&x, ev_old.side_at(&x, side), &mut old_vals, &mut old_grads);
+                [
+                    (&state.d, &mapped.d),
+                    (&state.v, &mapped.v),
+                    (&state.a, &mapped.a),
+                ]
+                .iter()
+                .zip(&tol)
+                .any(|((o, n), &tol)| {
+                    (value(o, old_ids, &old_vals) - value(n, ids, &vals)).amax() > tol
+                })
+            })
+        })
+        .collect()
+}
+
+/// How far, relative to the largest DOF, a field may move at an event
+/// without a tip front before [`changed_heaviside_elements`] counts its
+/// element as changed (round-off of the shifted enrichment's mapping).
+const KEPT_FIELD: f64 = 1e-12;
+
 /// [`project_tip_change_with`], an element's integrals taken from `fits`
 /// where it has them ([`map_state_fitted_with`]).
 fn project_fitted(
@@ -1180,7 +1269,7 @@ fn project_fitted(
     parallelism: Parallelism,
     cache: &mut ProjectionCache,
 ) -> Option<Projection> {
-    let fitted = fitted_functions(old, new)?;
+    let fitted = fitted_functions(old, new, state, mapped)?;
     let mut slot = vec![usize::MAX; new.n_shape];
     for (k, &s) in fitted.iter().enumerate() {
         slot[s] = k;

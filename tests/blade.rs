@@ -2982,3 +2982,113 @@ fn a_tet10_blade_beside_a_node_layer_updates_its_sliver_vertices_as_a_full_build
         }
     }
 }
+
+/// `front = "extend"` along a V-shaped path (the edge rises, then falls
+/// back): the extension of the strip to the element faces turns with it,
+/// so an event drops Heaviside enrichment and recuts elements whose
+/// enriched DOFs hold the field. Those elements' functions are now fitted
+/// to the old field (as where a tip front moved); before, the dropped DOFs
+/// were left out and the field changed as it fell.
+#[test]
+fn an_extended_path_that_turns_is_projected_where_enrichment_is_dropped() {
+    use xfem_cut::blade::{map_state, map_state_unprojected};
+    use xfem_cut::dynamics::{Newmark, State};
+    use xfem_cut::solve::Cholesky;
+    for element in ["tet4", "tet10"] {
+        let text = format!(
+            r#"name = "turning"
+[body]
+box = [[0.0, 0.0, 0.0], [0.05, 0.03, 0.1]]
+levels = [[2, 3, 6]]
+element = "{element}"
+[material]
+young = 3.0e5
+poisson = 0.3
+density = 1000.0
+[[cut]]
+blade = [[0.0, -0.01, 0.0833], [0.0, 0.04, 0.0833]]
+path = [[[0.0, -0.01, 0.0833], [0.0, 0.04, 0.0833]], [[0.0114, -0.01, 0.101], [0.0114, 0.04, 0.101]], [[0.0229, -0.01, 0.0833], [0.0229, 0.04, 0.0833]]]
+times = [0.0, 0.1, 0.2]
+front = "extend"
+[[fix]]
+min = [-inf, -inf, 0.0]
+max = [inf, inf, 0.0]
+[gravity]
+acceleration = [7.2, -5.9, 8.7]
+[analysis]
+type = "dynamic"
+dt = 0.01
+steps = 25
+"#
+        );
+        let scene =
+            xfem_cut::scene::Scene::parse(&text, std::path::Path::new("turning.toml")).unwrap();
+        let mesh = scene.mesh(0).unwrap();
+        let cuts = CutSet::from_scene(&scene).unwrap();
+        let (fixed, tractions) = scene.selections(&mesh).unwrap();
+        let build = |t: f64| {
+            scene
+                .model_input(
+                    mesh.clone(),
+                    cuts.setup_at(&mesh, t).unwrap(),
+                    fixed.clone(),
+                    &tractions,
+                )
+                .unwrap()
+        };
+        let opts = DynamicOptions {
+            dt: 0.01,
+            mass: MassKind::Consistent,
+            ..DynamicOptions::default()
+        };
+        let energy = |m: &xfem_cut::model::Model, s: &State| {
+            let mut nm = Newmark::new(m, Cholesky::new(&m.pattern).unwrap(), opts).unwrap();
+            nm.state = s.clone();
+            let e = nm.energies();
+            e.kinetic + e.strain
+        };
+        let mut m = build(0.01);
+        let mut nm = Newmark::new(&m, Cholesky::new(&m.pattern).unwrap(), opts).unwrap();
+        nm.initialise_acceleration().unwrap();
+        let (mut worst_raw, mut worst_projected, mut dropping): (f64, f64, usize) = (0.0, 0.0, 0);
+        for k in 2..=20 {
+            nm.step().unwrap();
+            let t = 0.01 * k as f64;
+            let next = build(t);
+            let (old_cut, new_cut) = (m.cut.as_ref().unwrap(), next.cut.as_ref().unwrap());
+            let drops = old_cut
+                .enriched
+                .iter()
+                .zip(&new_cut.enriched)
+                .any(|(a, b)| a.is_some() && b.is_none());
+            let before = energy(&m, &nm.state);
+            let raw = map_state_unprojected(&m, &next, &nm.state);
+            let projected = map_state(&m, &next, &nm.state);
+            let (jr, jp) = (
+                (energy(&next, &raw) - before).abs() / before,
+                (energy(&next, &projected) - before).abs() / before,
+            );
+            println!(
+                "{element} t = {t:.2}{}: energy change unprojected {jr:.2e}, projected {jp:.2e}",
+                if drops { " (enrichment dropped)" } else { "" }
+            );
+            assert!(projected.d.iter().all(|x| x.is_finite()));
+            if jr <= 1e-12 {
+                // Nothing changed, or only new enrichment: kept as mapped.
+                assert!(jp <= 1e-12, "{jp:e}");
+            }
+            dropping += drops as usize;
+            worst_raw = worst_raw.max(jr);
+            worst_projected = worst_projected.max(jp);
+            m = next;
+            nm = Newmark::new(&m, Cholesky::new(&m.pattern).unwrap(), opts).unwrap();
+            nm.state = projected;
+        }
+        println!("{element}: largest change: unprojected {worst_raw:.2e}, projected {worst_projected:.2e}");
+        assert!(dropping > 0, "the path must drop enrichment");
+        assert!(
+            worst_projected < 0.2 * worst_raw,
+            "{worst_projected:e} vs {worst_raw:e}"
+        );
+    }
+}
