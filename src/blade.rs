@@ -2507,7 +2507,7 @@ mod tests {
                 rotations: Rotations::identity(&old),
             };
             let mapped = map_state_unprojected(&old, &new, &state);
-            let fitted = fitted_functions(&old, &new).expect("the front moved");
+            let fitted = fitted_functions(&old, &new, &state, &mapped).expect("the front moved");
             let mut slot = vec![usize::MAX; new.n_shape];
             for (k, &s) in fitted.iter().enumerate() {
                 slot[s] = k;
