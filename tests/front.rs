@@ -1106,9 +1106,16 @@ points = [[0.0, 0.03, 0.2], [0.03, 0.03, 0.2], [0.0, 0.03, 0.1]]
                 .zip(&off)
                 .map(|(a, b)| (a - b).norm())
                 .fold(0.0, f64::max);
-            println!("{element}: plane {offset:e} h off the layer: {:.1e}", diff / scale);
+            println!(
+                "{element}: plane {offset:e} h off the layer: {:.1e}",
+                diff / scale
+            );
             // The plane moves by `offset`, the solution with it: O(offset).
-            assert!(diff <= 10.0 * offset.abs() * scale, "{element} {offset:e}: {:e}", diff / scale);
+            assert!(
+                diff <= 10.0 * offset.abs() * scale,
+                "{element} {offset:e}: {:e}",
+                diff / scale
+            );
         }
     }
 }
