@@ -1120,18 +1120,9 @@ fn fitted_functions(old: &Model, new: &Model, state: &State, mapped: &State) -> 
         return None;
     };
     if oc.n_tip == 0 && nc.n_tip == 0 {
-        let changed = changed_heaviside_elements(old, new, state, mapped);
-        let mut marked = vec![false; new.n_shape];
-        let mut fitted = Vec::new();
-        for e in changed {
-            for &s in new.element_shapes(e) {
-                let s = s as usize;
-                let free = (0..3).all(|c| new.equation[3 * s + c] != crate::model::NONE);
-                if free && !marked[s] {
-                    marked[s] = true;
-                    fitted.push(s);
-                }
-            }
+        let (mut marked, mut fitted) = (vec![false; new.n_shape], Vec::new());
+        for e in changed_heaviside_elements(old, new, state, mapped) {
+            push_free_functions(new, e, &mut marked, &mut fitted);
         }
         return (!fitted.is_empty()).then_some(fitted);
     }
@@ -1169,19 +1160,25 @@ fn fitted_functions(old: &Model, new: &Model, state: &State, mapped: &State) -> 
     }
     for e in 0..new.mesh.n_elements() {
         let conn = new.mesh.element(e);
-        if !(nc.holds_tip(conn) || oc.holds_tip(conn)) {
-            continue;
-        }
-        for &s in new.element_shapes(e) {
-            let s = s as usize;
-            let free = (0..3).all(|c| new.equation[3 * s + c] != crate::model::NONE);
-            if free && !marked[s] {
-                marked[s] = true;
-                fitted.push(s);
-            }
+        if nc.holds_tip(conn) || oc.holds_tip(conn) {
+            push_free_functions(new, e, &mut marked, &mut fitted);
         }
     }
     Some(fitted)
+}
+
+/// Appends to `fitted` the free shape functions of element `e` of `new`
+/// not yet `marked` (a function with a prescribed component takes no part
+/// in a fit), and marks them.
+fn push_free_functions(new: &Model, e: usize, marked: &mut [bool], fitted: &mut Vec<usize>) {
+    for &s in new.element_shapes(e) {
+        let s = s as usize;
+        let free = (0..3).all(|c| new.equation[3 * s + c] != crate::model::NONE);
+        if free && !marked[s] {
+            marked[s] = true;
+            fitted.push(s);
+        }
+    }
 }
 
 /// The elements whose field the mapping to `new` changed at an event

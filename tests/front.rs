@@ -990,21 +990,16 @@ fn blending_measure_tet10() {
     }
 }
 
-/// A cut whose plane is a node layer of the mesh, its front crossing the
-/// faces in that layer (the seed's beam, 10 layers in z: z = 0.1 is one; the
-/// front x = 0.0137 between the node lines x = 0.01 and 0.02) ends where it
-/// is given: the beam's tip moves as with the plane 2 snaps (2e-4 h) below
-/// the layer, where nothing snaps. Before, the faces were cut whole or not
-/// at all by their centroids, and the cut ended near x = 0.01 (the tip 9.5 %
-/// (Tet4) off).
-#[test]
-fn a_front_across_the_faces_of_a_node_layer_ends_where_it_is_given() {
+/// The probes of the seed's beam (3 × 6 × 10 elements, so z = 0.1 is a
+/// node layer) under gravity in x, cut by the patch from (0, 0, `z`) along
+/// (0.0137, 0, 0) and `v`, its front inside elements; asserts that
+/// elements hold the front.
+fn layer_probes(element: &str, z: f64, v: [f64; 3]) -> Vec<Vector3<f64>> {
     use std::path::Path;
     use xfem_cut::run::{probe_values, solve_scene};
     use xfem_cut::scene::Scene;
-    let scene = |element: &str, z: f64| {
-        let text = format!(
-            r#"name = "layer"
+    let text = format!(
+        r#"name = "layer"
 [body]
 box = [[0.0, 0.0, 0.0], [0.03, 0.06, 0.2]]
 levels = [[3, 6, 10]]
@@ -1016,68 +1011,7 @@ density = 1070.0
 [[cut]]
 origin = [0.0, 0.0, {z}]
 u = [0.0137, 0.0, 0.0]
-v = [0.0, 0.06, 0.0]
-[[fix]]
-min = [-inf, -inf, 0.0]
-max = [inf, inf, 0.0]
-displacement = [0.0, 0.0, 0.0]
-[gravity]
-acceleration = [9.81, 0.0, 0.0]
-[analysis]
-type = "static"
-[[probe]]
-points = [[0.0, 0.03, 0.2], [0.03, 0.03, 0.2]]
-"#
-        );
-        let scene = Scene::parse(&text, Path::new("layer.toml")).unwrap();
-        let r = solve_scene(&scene, 0, None, false).unwrap();
-        let c = r.model.cut.as_ref().unwrap();
-        assert!(
-            c.n_tip() > 0 && c.n_partial() > 0,
-            "{element} z = {z}: no front elements"
-        );
-        probe_values(&scene, &r).unwrap()
-    };
-    for element in ["tet4", "tet10"] {
-        // h: the longest edge of the beam's elements (0.01 × 0.01 × 0.02).
-        let h = (0.01f64.powi(2) * 2.0 + 0.02f64.powi(2)).sqrt();
-        let on = scene(element, 0.1);
-        let off = scene(element, 0.1 - 2e-4 * h);
-        for (a, b) in on.iter().zip(&off) {
-            let rel = (a - b).norm() / b.norm();
-            println!("{element}: layer {a:?}, 2 snaps below {b:?}: {rel:.1e}");
-            assert!(rel < 1e-3, "{element}: {rel:e}");
-        }
-    }
-}
-
-/// The same front with its plane a hair off the node layer (±1e-8 h, what
-/// single precision makes of z = 0.1 in an STL, and ±0.9 snap): every
-/// node of the layer snaps onto the plane, and the faces the front crosses
-/// are lifted to the same side as with the plane on the layer, so the
-/// tip moves by round-off. Before, nodes snapped from below were lifted
-/// below, the elements above the layer held the front instead of those
-/// below, and the tip moved 1.0 % (Tet4) from 1e-8 h.
-#[test]
-fn a_plane_within_the_snap_of_a_node_layer_solves_as_on_it() {
-    use std::path::Path;
-    use xfem_cut::run::{probe_values, solve_scene};
-    use xfem_cut::scene::Scene;
-    let scene = |element: &str, z: f64| {
-        let text = format!(
-            r#"name = "layer"
-[body]
-box = [[0.0, 0.0, 0.0], [0.03, 0.06, 0.2]]
-levels = [[3, 6, 10]]
-element = "{element}"
-[material]
-young = 3.0e5
-poisson = 0.35
-density = 1070.0
-[[cut]]
-origin = [0.0, 0.0, {z}]
-u = [0.0137, 0.0, 0.0]
-v = [0.0035, 0.06, 0.0]
+v = [{}, {}, {}]
 [[fix]]
 min = [-inf, -inf, 0.0]
 max = [inf, inf, 0.0]
@@ -1088,19 +1022,61 @@ acceleration = [9.81, 0.0, 0.0]
 type = "static"
 [[probe]]
 points = [[0.0, 0.03, 0.2], [0.03, 0.03, 0.2], [0.0, 0.03, 0.1]]
-"#
-        );
-        let scene = Scene::parse(&text, Path::new("layer.toml")).unwrap();
-        let r = solve_scene(&scene, 0, None, false).unwrap();
-        assert!(r.model.cut.as_ref().unwrap().n_tip() > 0);
-        probe_values(&scene, &r).unwrap()
-    };
-    let h = (0.01f64.powi(2) * 2.0 + 0.02f64.powi(2)).sqrt();
+"#,
+        v[0], v[1], v[2]
+    );
+    let scene = Scene::parse(&text, Path::new("layer.toml")).unwrap();
+    let r = solve_scene(&scene, 0, None, false).unwrap();
+    let c = r.model.cut.as_ref().unwrap();
+    assert!(
+        c.n_tip() > 0 && c.n_partial() > 0,
+        "{element} z = {z}: no front elements"
+    );
+    probe_values(&scene, &r).unwrap()
+}
+
+/// The beam's longest element edge (0.01 × 0.01 × 0.02).
+fn layer_h() -> f64 {
+    (0.01f64.powi(2) * 2.0 + 0.02f64.powi(2)).sqrt()
+}
+
+/// A cut whose plane is a node layer of the mesh, its front crossing the
+/// faces in that layer (the seed's beam, 10 layers in z: z = 0.1 is one; the
+/// front x = 0.0137 between the node lines x = 0.01 and 0.02) ends where it
+/// is given: the beam's tip moves as with the plane 2 snaps (2e-4 h) below
+/// the layer, where nothing snaps. Before, the faces were cut whole or not
+/// at all by their centroids, and the cut ended near x = 0.01 (the tip 9.5 %
+/// (Tet4) off).
+#[test]
+fn a_front_across_the_faces_of_a_node_layer_ends_where_it_is_given() {
     for element in ["tet4", "tet10"] {
-        let on = scene(element, 0.1);
+        let v = [0.0, 0.06, 0.0];
+        let on = layer_probes(element, 0.1, v);
+        let off = layer_probes(element, 0.1 - 2e-4 * layer_h(), v);
+        for (a, b) in on.iter().zip(&off) {
+            let rel = (a - b).norm() / b.norm();
+            println!("{element}: layer {a:?}, 2 snaps below {b:?}: {rel:.1e}");
+            assert!(rel < 1e-3, "{element}: {rel:e}");
+        }
+    }
+}
+
+/// The same front, skewed across the layer's faces, with its plane a hair
+/// off the node layer (±1e-8 h, what single precision makes of z = 0.1 in
+/// an STL, and ±0.9 snap): every node of the layer snaps onto the plane,
+/// and the faces the front crosses are lifted to the same side as with the
+/// plane on the layer, so the tip moves by round-off. Before, nodes
+/// snapped from below were lifted below, the elements above the layer held
+/// the front instead of those below, and the tip moved 1.1 % (Tet4) from
+/// 1e-8 h.
+#[test]
+fn a_plane_within_the_snap_of_a_node_layer_solves_as_on_it() {
+    let v = [0.0035, 0.06, 0.0];
+    for element in ["tet4", "tet10"] {
+        let on = layer_probes(element, 0.1, v);
         let scale = on.iter().map(|p| p.norm()).fold(0.0, f64::max);
         for offset in [1e-8, -1e-8, 0.9e-4, -0.9e-4] {
-            let off = scene(element, 0.1 + offset * h);
+            let off = layer_probes(element, 0.1 + offset * layer_h(), v);
             let diff = on
                 .iter()
                 .zip(&off)
