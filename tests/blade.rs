@@ -1434,6 +1434,20 @@ fn a_bordered_solve_on_the_old_factor_equals_refactorisation() {
     assert!(events >= 3);
 }
 
+/// Kinetic plus strain energy of the state `s` of model `m` (the mass `opts` asks for).
+fn total_energy(
+    m: &xfem_cut::model::Model,
+    s: &xfem_cut::dynamics::State,
+    opts: DynamicOptions,
+) -> f64 {
+    use xfem_cut::dynamics::Newmark;
+    use xfem_cut::solve::Cholesky;
+    let mut nm = Newmark::new(m, Cholesky::new(&m.pattern).unwrap(), opts).unwrap();
+    nm.state = s.clone();
+    let e = nm.energies();
+    e.kinetic + e.strain
+}
+
 #[test]
 fn tip_to_heaviside_changes_are_projected_and_the_energy_jump_shrinks() {
     use xfem_cut::blade::{map_state, map_state_unprojected};
@@ -1457,12 +1471,7 @@ fn tip_to_heaviside_changes_are_projected_and_the_energy_jump_shrinks() {
         mass: MassKind::Consistent,
         ..DynamicOptions::default()
     };
-    let energy = |m: &xfem_cut::model::Model, s: &State| {
-        let mut nm = Newmark::new(m, Cholesky::new(&m.pattern).unwrap(), opts).unwrap();
-        nm.state = s.clone();
-        let e = nm.energies();
-        e.kinetic + e.strain
-    };
+    let energy = |m: &xfem_cut::model::Model, s: &State| total_energy(m, s, opts);
     let mut m = model(
         &mesh,
         cuts.setup_at(&mesh, 0.1).unwrap(),
@@ -3041,12 +3050,7 @@ steps = 25
             mass: MassKind::Consistent,
             ..DynamicOptions::default()
         };
-        let energy = |m: &xfem_cut::model::Model, s: &State| {
-            let mut nm = Newmark::new(m, Cholesky::new(&m.pattern).unwrap(), opts).unwrap();
-            nm.state = s.clone();
-            let e = nm.energies();
-            e.kinetic + e.strain
-        };
+        let energy = |m: &xfem_cut::model::Model, s: &State| total_energy(m, s, opts);
         let mut m = build(0.01);
         let mut nm = Newmark::new(&m, Cholesky::new(&m.pattern).unwrap(), opts).unwrap();
         nm.initialise_acceleration().unwrap();
