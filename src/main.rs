@@ -3,7 +3,7 @@
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
-use xfem_cut::run::{probe_values, solve_scene_with};
+use xfem_cut::run::{probe_values, solve_scene_observed, Progress};
 use xfem_cut::scene::Scene;
 use xfem_cut::solve::Parallelism;
 
@@ -150,13 +150,28 @@ fn run() -> Result<()> {
             if out.exists() && !out.is_dir() {
                 anyhow::bail!("--out {}: exists and is not a directory", out.display());
             }
-            let result = solve_scene_with(
+            // Where the solve is, on a terminal only (hidden in logs): a
+            // soft corotational scene's Newton can take minutes.
+            let bar = indicatif::ProgressBar::new_spinner();
+            bar.enable_steady_tick(std::time::Duration::from_millis(200));
+            let result = solve_scene_observed(
                 &scene,
                 level,
                 mesh.as_deref(),
                 true,
                 Parallelism::threads(threads),
-            )?;
+                &mut |p| match p {
+                    Progress::Newton(n) => bar.set_message(format!(
+                        "static: load {:.4}, Newton iteration {}, relative residual {:.2e}",
+                        n.lambda, n.iteration, n.residual
+                    )),
+                    Progress::Step { step, steps, time } => {
+                        bar.set_message(format!("dynamic: step {step} of {steps}, t = {time:.4} s"))
+                    }
+                },
+            );
+            bar.finish_and_clear();
+            let result = result?;
             println!("{}: {}", scene.name, scene.description);
             println!("{}", result.plan);
             let t = result.timings;

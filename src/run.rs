@@ -11,7 +11,7 @@ use crate::model::Model;
 use crate::plan::Plan;
 use crate::scene::{Analysis, Scene, SceneError};
 use crate::solve::{Cholesky, Parallelism, SolveError};
-use crate::statics::{solve_static, StaticError, StaticOptions};
+use crate::statics::{solve_static_observed, NewtonProgress, StaticError, StaticOptions};
 use nalgebra::{Point3, Vector3};
 use std::path::Path;
 use std::time::Instant;
@@ -128,6 +128,39 @@ pub fn solve_scene_with(
     keep_frames: bool,
     parallelism: Parallelism,
 ) -> Result<RunResult, RunError> {
+    solve_scene_observed(
+        scene,
+        level,
+        mesh_override,
+        keep_frames,
+        parallelism,
+        &mut |_| {},
+    )
+}
+
+/// Where a run is, as [`solve_scene_observed`] reports it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Progress {
+    /// A static scene: each residual its Newton iterations evaluate.
+    Newton(NewtonProgress),
+    /// A dynamic scene: step `step` of `steps` done, at `time`.
+    Step {
+        step: usize,
+        steps: usize,
+        time: f64,
+    },
+}
+
+/// [`solve_scene_with`], telling `observe` where it is (for the CLI's
+/// progress line: a soft corotational scene's Newton can take minutes).
+pub fn solve_scene_observed(
+    scene: &Scene,
+    level: usize,
+    mesh_override: Option<&Path>,
+    keep_frames: bool,
+    parallelism: Parallelism,
+    observe: &mut dyn FnMut(Progress),
+) -> Result<RunResult, RunError> {
     let file = scene.file.display().to_string();
     let t0 = Instant::now();
     let (mesh, notes) = match mesh_override {
@@ -154,12 +187,13 @@ pub fn solve_scene_with(
         let mut result = solve_progressive(
             scene,
             mesh,
-            t_mesh,
             *options,
             *output_every,
             keep_frames,
             parallelism,
+            observe,
         )?;
+        result.timings.mesh = t_mesh;
         if let Some(p) = mesh_override {
             result.plan.mesh_from(p);
         }
@@ -206,11 +240,17 @@ pub fn solve_scene_with(
                 parallelism,
                 ..*opts
             };
-            let sol =
-                solve_static(&model, &mut chol, &opts).map_err(|source| RunError::Static {
-                    file: file.clone(),
-                    source,
-                })?;
+            let sol = solve_static_observed(
+                &model,
+                &mut chol,
+                &opts,
+                |lambda, p| lambda * p.value,
+                &mut |p| observe(Progress::Newton(p)),
+            )
+            .map_err(|source| RunError::Static {
+                file: file.clone(),
+                source,
+            })?;
             timings.solve = t2.elapsed().as_secs_f64();
             Ok(RunResult {
                 model,
@@ -261,6 +301,11 @@ pub fn solve_scene_with(
                     source,
                 })?;
                 stats.record(&r, t_step.elapsed().as_secs_f64());
+                observe(Progress::Step {
+                    step,
+                    steps: options.steps,
+                    time: nm.state.time,
+                });
                 iterations.push(r.iterations);
                 residual = residual.max(r.residual);
                 if step % output_every == 0 || step == options.steps {
@@ -300,11 +345,11 @@ pub fn solve_scene_with(
 fn solve_progressive(
     scene: &Scene,
     mesh: TetMesh,
-    t_mesh: f64,
     options: DynamicOptions,
     output_every: usize,
     keep_frames: bool,
     parallelism: Parallelism,
+    observe: &mut dyn FnMut(Progress),
 ) -> Result<RunResult, RunError> {
     let file = scene.file.display().to_string();
     let blade_err = |source| RunError::Blade {
@@ -333,6 +378,11 @@ fn solve_progressive(
         parallelism,
         |step, model, nm| {
             if step > 0 {
+                observe(Progress::Step {
+                    step,
+                    steps: options.steps,
+                    time: nm.state.time,
+                });
                 if let Some(r) = nm.last_report() {
                     iterations.push(r.iterations);
                     residual = residual.max(r.residual);
@@ -360,7 +410,8 @@ fn solve_progressive(
         d: result.state.d.clone(),
         model: result.model,
         timings: Timings {
-            mesh: t_mesh,
+            // The caller's.
+            mesh: 0.0,
             cut: result.sweep.event_seconds,
             model: t_setup,
             symbolic: 0.0,

@@ -101,6 +101,28 @@ pub fn solve_static_along(
     opts: &StaticOptions,
     prescribed: impl Fn(f64, &crate::model::Prescribed) -> f64,
 ) -> Result<StaticSolution, StaticError> {
+    solve_static_observed(model, chol, opts, prescribed, &mut |_| {})
+}
+
+/// Where a static solve is: each Newton iteration's load fraction λ (of a
+/// load step, halved ones too), the iteration within the step (0: the
+/// residual before the first solve) and its relative residual.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NewtonProgress {
+    pub lambda: f64,
+    pub iteration: usize,
+    pub residual: f64,
+}
+
+/// [`solve_static_along`], telling `observe` each residual it evaluates
+/// (for a progress display: a soft corotational scene can take minutes).
+pub fn solve_static_observed(
+    model: &Model,
+    chol: &mut Cholesky,
+    opts: &StaticOptions,
+    prescribed: impl Fn(f64, &crate::model::Prescribed) -> f64,
+    observe: &mut dyn FnMut(NewtonProgress),
+) -> Result<StaticSolution, StaticError> {
     let n = model.n_dofs();
     let linear = model.formulation == Formulation::Linear;
     let steps = if linear { 1 } else { opts.load_steps.max(1) };
@@ -160,6 +182,11 @@ pub fn solve_static_along(
                 let scale = load_norm.max(norm(&f_int)).max(round_off);
                 let r_norm = norm(&r_free);
                 residual = if r_norm == 0.0 { 0.0 } else { r_norm / scale };
+                observe(NewtonProgress {
+                    lambda,
+                    iteration: it,
+                    residual,
+                });
                 if !residual.is_finite() {
                     return Err(StaticError::NotFinite);
                 }

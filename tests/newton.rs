@@ -601,3 +601,99 @@ rayleigh = { mass = 0.0, stiffness = 0.001 }
         nm.step().unwrap();
     }
 }
+
+/// What `run` shows while it solves (`run::solve_scene_observed`): a
+/// static corotational scene reports every residual its Newton iterations
+/// evaluate, the last being the solution's, at the full load; a dynamic
+/// scene and a blade's sweep report each step once, in order, the last at
+/// the final time. The solution is the one `solve_scene` gives.
+#[test]
+fn a_run_reports_where_it_is() {
+    use xfem_cut::run::{solve_scene, solve_scene_observed, Progress};
+    use xfem_cut::solve::Parallelism;
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
+    let load = |file: &str, edits: &[(&str, &str)]| {
+        let path = root.join(file);
+        let mut text = std::fs::read_to_string(&path).unwrap();
+        for (from, to) in edits {
+            assert!(text.contains(from), "{file}: {from}");
+            text = text.replacen(from, to, 1);
+        }
+        Scene::parse(&text, &path).unwrap()
+    };
+    let observed = |scene: &Scene| {
+        let mut seen = Vec::new();
+        let r = solve_scene_observed(scene, 0, None, false, Parallelism::SEQUENTIAL, &mut |p| {
+            seen.push(p)
+        })
+        .unwrap();
+        let plain = solve_scene(scene, 0, None, false).unwrap();
+        assert_eq!(
+            r.d, plain.d,
+            "{}: observing changed the solution",
+            scene.name
+        );
+        (r, seen)
+    };
+    // Static, corotational: Newton's residuals.
+    let scene = load(
+        "bend.toml",
+        &[(
+            r#"formulation = "linear""#,
+            r#"formulation = "corotational""#,
+        )],
+    );
+    let (r, seen) = observed(&scene);
+    let newton: Vec<_> = seen
+        .iter()
+        .map(|p| match p {
+            Progress::Newton(n) => *n,
+            other => panic!("a static scene reported {other:?}"),
+        })
+        .collect();
+    let iterations: usize = r.iterations.iter().sum();
+    println!(
+        "bend corotational: {} residuals for {iterations} iterations over {} load steps",
+        newton.len(),
+        r.iterations.len()
+    );
+    // One residual before each iteration's solve and one that ends each
+    // step (no step halved here).
+    assert_eq!(r.cutbacks, 0);
+    assert_eq!(newton.len(), iterations + r.iterations.len());
+    let last = newton.last().unwrap();
+    assert_eq!((last.lambda, last.residual), (1.0, r.residual));
+    assert!(newton.windows(2).all(|w| w[1].lambda >= w[0].lambda));
+    // Dynamic, and a blade's sweep: each step once.
+    for (file, edits) in [
+        ("bend_dynamic.toml", &[("steps = 10000", "steps = 60")][..]),
+        ("cut_progressive.toml", &[("steps = 300", "steps = 70")][..]),
+    ] {
+        let scene = load(file, edits);
+        let Analysis::Dynamic { options, .. } = scene.analysis else {
+            panic!("{file}: a dynamic scene")
+        };
+        let (_, seen) = observed(&scene);
+        let steps: Vec<(usize, f64)> = seen
+            .iter()
+            .map(|p| match p {
+                Progress::Step { step, steps, time } => {
+                    assert_eq!(*steps, options.steps);
+                    (*step, *time)
+                }
+                other => panic!("{file}: a dynamic scene reported {other:?}"),
+            })
+            .collect();
+        println!("{file}: {} steps reported", steps.len());
+        assert_eq!(
+            steps.iter().map(|s| s.0).collect::<Vec<_>>(),
+            (1..=options.steps).collect::<Vec<_>>(),
+            "{file}"
+        );
+        let t_end = options.dt * options.steps as f64;
+        assert!(
+            (steps.last().unwrap().1 - t_end).abs() <= 1e-9 * t_end,
+            "{file}"
+        );
+    }
+}
