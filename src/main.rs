@@ -152,8 +152,11 @@ fn run() -> Result<()> {
             }
             // Where the solve is, on a terminal only (hidden in logs): a
             // soft corotational scene's Newton can take minutes.
+            // The plan is printed as soon as it is known (before the solve,
+            // where the scene has no blade), so a long run shows what it does.
             let bar = indicatif::ProgressBar::new_spinner();
             bar.enable_steady_tick(std::time::Duration::from_millis(200));
+            let mut planned = false;
             let result = solve_scene_observed(
                 &scene,
                 level,
@@ -161,6 +164,13 @@ fn run() -> Result<()> {
                 true,
                 Parallelism::threads(threads),
                 &mut |p| match p {
+                    Progress::Planned(plan) => {
+                        bar.suspend(|| {
+                            println!("{}: {}", scene.name, scene.description);
+                            println!("{plan}");
+                        });
+                        planned = true;
+                    }
                     Progress::Newton(n) => bar.set_message(format!(
                         "static: load {:.4}, Newton iteration {}, relative residual {:.2e}",
                         n.lambda, n.iteration, n.residual
@@ -172,8 +182,10 @@ fn run() -> Result<()> {
             );
             bar.finish_and_clear();
             let result = result?;
-            println!("{}: {}", scene.name, scene.description);
-            println!("{}", result.plan);
+            if !planned {
+                println!("{}: {}", scene.name, scene.description);
+                println!("{}", result.plan);
+            }
             let t = result.timings;
             if result.sweep.is_some() {
                 // A blade's cut is set up and its model built at each cut event.

@@ -139,8 +139,12 @@ pub fn solve_scene_with(
 }
 
 /// Where a run is, as [`solve_scene_observed`] reports it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Progress {
+#[derive(Debug, Clone, Copy)]
+pub enum Progress<'a> {
+    /// The plan, once the model is built and before the solve (static and
+    /// dynamic scenes without a blade; a blade's sweep builds its models as
+    /// it runs, and its plan comes with the result).
+    Planned(&'a Plan),
     /// A static scene: each residual its Newton iterations evaluate.
     Newton(NewtonProgress),
     /// A dynamic scene: step `step` of `steps` done, at `time`.
@@ -159,7 +163,7 @@ pub fn solve_scene_observed(
     mesh_override: Option<&Path>,
     keep_frames: bool,
     parallelism: Parallelism,
-    observe: &mut dyn FnMut(Progress),
+    observe: &mut dyn FnMut(Progress<'_>),
 ) -> Result<RunResult, RunError> {
     let file = scene.file.display().to_string();
     let t0 = Instant::now();
@@ -220,6 +224,7 @@ pub fn solve_scene_observed(
         plan.mesh_from(p);
     }
     plan.mesh_notes(&notes);
+    observe(Progress::Planned(&plan));
     let beside = threads > 1;
     let factor = chol.describe();
     let mut timings = Timings {
@@ -349,7 +354,7 @@ fn solve_progressive(
     output_every: usize,
     keep_frames: bool,
     parallelism: Parallelism,
-    observe: &mut dyn FnMut(Progress),
+    observe: &mut dyn FnMut(Progress<'_>),
 ) -> Result<RunResult, RunError> {
     let file = scene.file.display().to_string();
     let blade_err = |source| RunError::Blade {

@@ -602,8 +602,9 @@ rayleigh = { mass = 0.0, stiffness = 0.001 }
     }
 }
 
-/// What `run` shows while it solves (`run::solve_scene_observed`): a
-/// static corotational scene reports every residual its Newton iterations
+/// What `run` shows while it solves (`run::solve_scene_observed`): the
+/// plan first, before the solve (the one the result holds; a blade's comes
+/// with the result), then: a static corotational scene reports every residual its Newton iterations
 /// evaluate, the last being the solution's, at the full load; a dynamic
 /// scene and a blade's sweep report each step once, in order, the last at
 /// the final time. The solution is the one `solve_scene` gives.
@@ -621,20 +622,38 @@ fn a_run_reports_where_it_is() {
         }
         Scene::parse(&text, &path).unwrap()
     };
-    let observed = |scene: &Scene| {
-        let mut seen = Vec::new();
-        let r = solve_scene_observed(scene, 0, None, false, Parallelism::SEQUENTIAL, &mut |p| {
-            seen.push(p)
-        })
-        .unwrap();
-        let plain = solve_scene(scene, 0, None, false).unwrap();
-        assert_eq!(
-            r.d, plain.d,
-            "{}: observing changed the solution",
-            scene.name
-        );
-        (r, seen)
-    };
+    // What was reported after the plan, and whether the plan came (first).
+    let observed =
+        |scene: &Scene| {
+            let (mut plan, mut seen) = (None, Vec::new());
+            let r =
+                solve_scene_observed(scene, 0, None, false, Parallelism::SEQUENTIAL, &mut |p| {
+                    match p {
+                        Progress::Planned(p) => {
+                            assert!(
+                                plan.is_none() && seen.is_empty(),
+                                "the plan comes first, once"
+                            );
+                            plan = Some(p.to_string());
+                        }
+                        Progress::Newton(n) => seen.push(Progress::Newton(n)),
+                        Progress::Step { step, steps, time } => {
+                            seen.push(Progress::Step { step, steps, time })
+                        }
+                    }
+                })
+                .unwrap();
+            let plain = solve_scene(scene, 0, None, false).unwrap();
+            assert_eq!(
+                r.d, plain.d,
+                "{}: observing changed the solution",
+                scene.name
+            );
+            if let Some(plan) = &plan {
+                assert_eq!(plan, &r.plan.to_string(), "{}", scene.name);
+            }
+            (r, seen, plan.is_some())
+        };
     // Static, corotational: Newton's residuals.
     let scene = load(
         "bend.toml",
@@ -643,7 +662,8 @@ fn a_run_reports_where_it_is() {
             r#"formulation = "corotational""#,
         )],
     );
-    let (r, seen) = observed(&scene);
+    let (r, seen, planned) = observed(&scene);
+    assert!(planned, "a static scene's plan comes before its solve");
     let newton: Vec<_> = seen
         .iter()
         .map(|p| match p {
@@ -673,7 +693,9 @@ fn a_run_reports_where_it_is() {
         let Analysis::Dynamic { options, .. } = scene.analysis else {
             panic!("{file}: a dynamic scene")
         };
-        let (_, seen) = observed(&scene);
+        let (_, seen, planned) = observed(&scene);
+        // A blade's models are built as it runs: its plan comes with the result.
+        assert_eq!(planned, !scene.has_blade(), "{file}");
         let steps: Vec<(usize, f64)> = seen
             .iter()
             .map(|p| match p {
