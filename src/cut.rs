@@ -283,6 +283,16 @@ pub struct CutSetup {
     /// Per node: index of its tip-enriched block (4 branch functions, 12 DOFs).
     pub tip: Vec<Option<usize>>,
     pub n_tip: usize,
+    /// Per tip block, the factor 1/√h of its branch functions, h the node's
+    /// local element size (the smallest longest edge of its elements): the
+    /// functions are √(r/h)·(…), so their DOFs are lengths, as the others
+    /// are. With √r alone a tip DOF is a length over √length, and the
+    /// Euclidean norms that Newton's tolerance and Anderson's mixing take
+    /// over all DOFs weighed tip rows by the unit of length: the same scene
+    /// in millimetres stopped Newton elsewhere (3.4e-8 of the displacement,
+    /// a Tet10 corotational dynamic scene; `tests/front.rs`
+    /// `a_scene_in_millimetres_solves_as_in_metres`).
+    pub tip_scale: Vec<f64>,
     /// Per node, with [`Blending::Ramp`]: whether it is in I, the nodes the
     /// ramp R = Σ_{k∈I} λ_k sums over (tip nodes not in I are the blending
     /// elements' other vertices). Empty for [`Blending::None`].
@@ -635,6 +645,7 @@ fn merge(mesh: &TetMesh, setups: Vec<CutSetup>) -> Result<CutSetup, CutError> {
     let mut n_enriched = 0;
     let mut tip = vec![None; n_nodes];
     let mut n_tip = 0;
+    let mut tip_scale = Vec::new();
     let any_ramp = setups.iter().any(|s| !s.ramp.is_empty());
     let mut ramp = vec![false; if any_ramp { n_nodes } else { 0 }];
     for i in 0..n_nodes {
@@ -650,8 +661,9 @@ fn merge(mesh: &TetMesh, setups: Vec<CutSetup>) -> Result<CutSetup, CutError> {
                 enriched[i] = Some(n_enriched);
                 n_enriched += 1;
             }
-            if setups[k].tip[i].is_some() {
+            if let Some(t) = setups[k].tip[i] {
                 tip[i] = Some(n_tip);
+                tip_scale.push(setups[k].tip_scale[t]);
                 n_tip += 1;
             }
         }
@@ -676,6 +688,7 @@ fn merge(mesh: &TetMesh, setups: Vec<CutSetup>) -> Result<CutSetup, CutError> {
         front_level,
         tip,
         n_tip,
+        tip_scale,
         ramp,
         measured: setups
             .iter()
@@ -1268,6 +1281,7 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
     // jumps across the cut; a Heaviside mid-node would open the cut ahead).
     let mut tip = vec![None; n_nodes];
     let mut n_tip = 0;
+    let mut tip_scale = Vec::new();
     let mut ramp = Vec::new();
     let mut heaviside_too = vec![false; n_nodes];
     if let Some(segments) = &front {
@@ -1342,6 +1356,7 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
                     enrich[i] = true;
                 }
                 tip[i] = Some(n_tip);
+                tip_scale.push(1.0 / h[i].sqrt());
                 n_tip += 1;
             }
         }
@@ -1396,6 +1411,7 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
         front_level,
         tip,
         n_tip,
+        tip_scale,
         ramp,
         measured: (far.iter().filter(|&&f| !f).count(), n_nodes),
         tip_levels: Default::default(),

@@ -501,7 +501,7 @@ impl Model {
                 let here = front::branch_values(r, front::polar_angle(f, g, side));
                 let shift = front::branch_values(r, front::polar_angle(f, g, own));
                 let first = self.mesh.n_nodes() + c.n_enriched + N_BRANCH * t;
-                let ramp = c.ramp_at(node);
+                let ramp = c.ramp_at(node) * c.tip_scale[t];
                 for b in 0..N_BRANCH {
                     let s = first + b;
                     u += Vector3::new(d[3 * s], d[3 * s + 1], d[3 * s + 2])
@@ -522,10 +522,11 @@ impl Model {
                     let own = if fv >= 0.0 { 1 } else { -1 };
                     let shift = front::branch_values(fv.hypot(gv), front::polar_angle(fv, gv, own));
                     let first = self.mesh.n_nodes() + c.n_enriched + N_BRANCH * t;
+                    let w = 0.5 * w * c.tip_scale[t];
                     for k in 0..N_BRANCH {
                         let s = first + k;
                         u += Vector3::new(d[3 * s], d[3 * s + 1], d[3 * s + 2])
-                            * (0.5 * w * (here[k] - shift[k]));
+                            * (w * (here[k] - shift[k]));
                     }
                 }
             }
@@ -799,6 +800,8 @@ pub struct ElementShapes {
     grad_psi: Vector3<f64>,
     /// F_b(x_k) of each tip node (on its own side).
     shift: Vec<[f64; N_BRANCH]>,
+    /// Per entry of `tip`, its functions' factor 1/√h ([`CutSetup::tip_scale`]).
+    tip_scale: Vec<f64>,
     /// With [`crate::cut::Blending::Ramp`]: the vertices in I, whose λ sum to R.
     ramp: Option<[bool; 4]>,
     /// Local element size (tolerance for vertices on the front).
@@ -843,6 +846,7 @@ impl ElementShapes {
             .iter()
             .map(|&(k, _)| tip_branches(mesh.kind, cut, conn[k]))
             .collect();
+        let tip_scale = tip.iter().map(|&(_, t)| cut.tip_scale[t]).collect();
         let (phi, psi) = cut.vertex_levels(mesh, e);
         let grad_phi = (0..4).fold(Vector3::zeros(), |s, k| s + dl[k] * phi[k]);
         let grad_psi = (0..4).fold(Vector3::zeros(), |s, k| s + dl[k] * psi[k]);
@@ -878,6 +882,7 @@ impl ElementShapes {
             grad_phi,
             grad_psi,
             shift,
+            tip_scale,
             ramp,
             size,
             volume,
@@ -989,9 +994,10 @@ impl ElementShapes {
         }
         let (fv, fg) = front::branch_with_gradients(f, g, &self.grad_phi, &self.grad_psi, side);
         // Tip functions on the vertices' linear partition of unity λ_k, times
-        // the ramp R = Σ_{i∈I} λ_i where it is on (else R ≡ 1).
+        // the ramp R = Σ_{i∈I} λ_i where it is on (else R ≡ 1), over √h.
         for (j, &(k, _)) in self.tip.iter().enumerate() {
-            let (w, gw) = (l[k] * r, self.dl[k] * r + gr * l[k]);
+            let c = self.tip_scale[j];
+            let (w, gw) = (l[k] * r * c, (self.dl[k] * r + gr * l[k]) * c);
             for &b in self.tip_branches[j] {
                 let df = fv[b] - self.shift[j][b];
                 vals[a] = w * df;

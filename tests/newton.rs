@@ -249,7 +249,8 @@ fn damped_newton_iterations_of_the_shipped_scenes_are_pinned() {
 /// Newton step to the tolerance's level, and a factorisation serves many
 /// steps. Pinned (AMD, one thread: deterministic): Newton iterations and
 /// factorisations over the 60 steps of the bend cases' ramp and after it,
-/// the 30 of `free_slice` — 362 / 17, 355 / 18 and 122 / 23 (the plain
+/// the 30 of `free_slice` — 363 / 17, 355 / 18 and 122 / 23 (362 / 17 for
+/// `bend_dynamic` while the branch functions were √r, not √(r/h); the plain
 /// modified Newton before the Anderson-accelerated default: 330 / 26,
 /// 306 / 27 and 118 / 25), against 170, 170 and 89 factorisations
 /// refactorising (one per iteration).
@@ -285,7 +286,7 @@ fn the_default_lagged_step_of_the_shipped_scenes_is_pinned() {
         );
         assert!(worst < 1e-7, "{file}: {worst:e}");
         let want = match file {
-            "bend_dynamic.toml" => (362, 17),
+            "bend_dynamic.toml" => (363, 17),
             "bend_dynamic_uncut.toml" => (355, 18),
             _ => (122, 23),
         };
@@ -451,7 +452,12 @@ fn the_lagged_factor_step_follows_the_refactorising_step() {
 /// one that left more than 0.1) follows the refactorising step to the
 /// Newton tolerance's level over 100 steps of `bend_dynamic`, and its
 /// acceleration saves iterations: the same policy without it takes more
-/// Newton iterations (measured: 442 against 451, 17 factorisations each).
+/// Newton iterations. Pinned (deterministic): 447 iterations and 17
+/// factorisations against 467 and 16. (442 and 17 against 451 and 17 while
+/// the branch functions were √r, not √(r/h): Newton's norms weighed the tip
+/// rows otherwise, [`xfem_cut::cut::CutSetup::tip_scale`]; one
+/// factorisation more for 20 iterations fewer is about even at this size,
+/// where a factorisation with its tangent costs a few iterations.)
 #[test]
 fn the_default_anderson_accelerated_lagged_step_follows_the_refactorising_step() {
     use xfem_cut::dynamics::{LinearSolver, DEFAULT_LAGGED};
@@ -479,7 +485,7 @@ fn the_default_anderson_accelerated_lagged_step_follows_the_refactorising_step()
     assert!(worst < 1e-7, "{worst:e}");
     assert!(worst_plain < 1e-7, "{worst_plain:e}");
     assert!(n_aa < n_plain, "{n_aa} vs {n_plain}");
-    assert!(f_aa <= f_plain, "{f_aa} vs {f_plain}");
+    assert_eq!((n_aa, f_aa, n_plain, f_plain), (447, 17, 467, 16));
 }
 
 /// `bend_dynamic` (corotational, Rayleigh mass and stiffness damping) at

@@ -323,8 +323,11 @@ fn random_scenes_in_other_units_give_the_same_displacements_scaled() {
     // of m): every tolerance of the cut set-up (snap, lift, the front's
     // reach, probes on the cut, the classification of slivers) is relative
     // to the scene, so the probes are the same times s, to round-off.
-    // Measured: ≤ 4.3e-12, and 2.5e-10 for a corotational dynamic Tet10
-    // scene (Newton stops at a relative residual of 1e-8). A CLI fuzz of 39
+    // Measured: ≤ 8.0e-12 (while the branch functions were √r, not √(r/h):
+    // ≤ 4.3e-12, and 2.5e-10 for a corotational dynamic Tet10 scene, where
+    // Newton stops at a relative residual of 1e-8 and its norm weighed the
+    // tip rows by the unit of length, `tests/front.rs`
+    // `a_scene_in_millimetres_solves_as_in_metres`). A CLI fuzz of 39
     // scenes (rotations of a gmsh mesh by signed axis permutations, scales
     // 1e-3 … 1e3, moves up to 9e4 m) gave ≤ 7.6e-11. Mirror images (10)
     // differ by up to 3.9e-6 where the front is tip-enriched (an extended

@@ -447,7 +447,7 @@ impl WilliamsFront {
     /// Prescribed values on every boundary node: standard DOFs the exact nodal
     /// value, Heaviside DOFs the jump to the other side's continuation
     /// (u_other = −u_i: every branch function changes sign under θ → θ − 2π),
-    /// tip DOFs the Williams coefficients b_k.
+    /// tip DOFs the Williams coefficients b_k times √h ([`CutSetup::tip_scale`]).
     pub fn boundary_values(
         &self,
         mesh: &TetMesh,
@@ -485,13 +485,14 @@ impl WilliamsFront {
                 fixed.push((n_nodes + j, a.map(Some).into()));
             }
             if let Some(t) = cut.tip[i] {
-                // (A ring node's held branch functions are zero.)
+                // (A ring node's held branch functions are zero.) The
+                // model's functions are over √h: their DOFs are b √h.
                 let held = held_branches(mesh, cut, i);
                 for k in 0..N_BRANCH {
                     let b = if held.contains(&k) {
                         Vector3::zeros()
                     } else {
-                        self.b[k]
+                        self.b[k] / cut.tip_scale[t]
                     };
                     fixed.push((
                         n_nodes + cut.n_enriched + N_BRANCH * t + k,
@@ -729,7 +730,7 @@ impl Case {
     pub fn description(self) -> &'static str {
         match self {
             Case::ThroughCut => "A manufactured solution with a jump: on each side of the oblique plane n ∝ (0.3, 1, 0.2) through (0.5, 0.47, 0.52), which cuts the box completely, its own smooth field (+ side: sine, cubic and quadratic ridge terms; − side: exponential and sine ridge terms and an offset). Body force f = −div σ in closed form and the traction σ n_out on both cut faces from each side's field (`assembly::field_load`); on the outer boundary the standard DOFs take the own side's field and the Heaviside DOFs the jump to the other side's field, so the discrete field equals the exact one at boundary nodes from both sides. X-FEM Heaviside holds each side's interpolant: theory 2 / 1 (Tet4) and 3 / 2 (Tet10) in L2 / energy. `FEM pre-cut`: the perfectly remeshed cut, FEM on a conforming mesh of the same structured box with every element the plane crosses split along it (the nodes on the plane duplicated per side, `exact::precut_mesh`), the same loads (the traction on the faces on the plane) and the same theory.",
-            Case::NearFront => "Williams' near-front field (modes I + II in plane strain, K_I = 1, K_II = 0.7, and mode III, K_III = 0.5) around a straight front through (0.513, 0.479, 0.507) crossing the box obliquely, the crack behind it: an exact solution of 3-D linear elasticity with traction-free crack faces and no body force. Boundary values: standard DOFs the exact nodal values, Heaviside DOFs the jump the tip functions do not already make, tip DOFs the Williams coefficients. Theory: geometric tip enrichment (every node within R = 0.2 of the front) restores the smooth rates (2 / 1 for Tet4, 3 / 2 for Tet10); topological tip enrichment (the nodes of front elements) is limited by the √r singularity outside the enriched band (1 / 0.5); `extend` lengthens the cut by up to an element and has no clean rate.",
+            Case::NearFront => "Williams' near-front field (modes I + II in plane strain, K_I = 1, K_II = 0.7, and mode III, K_III = 0.5) around a straight front through (0.513, 0.479, 0.507) crossing the box obliquely, the crack behind it: an exact solution of 3-D linear elasticity with traction-free crack faces and no body force. Boundary values: standard DOFs the exact nodal values, Heaviside DOFs the jump the tip functions do not already make, tip DOFs the Williams coefficients (times √h: the functions are over √h). Theory: geometric tip enrichment (every node within R = 0.2 of the front) restores the smooth rates (2 / 1 for Tet4, 3 / 2 for Tet10); topological tip enrichment (the nodes of front elements) is limited by the √r singularity outside the enriched band (1 / 0.5); `extend` lengthens the cut by up to an element and has no clean rate.",
         }
     }
 
