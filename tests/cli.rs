@@ -95,6 +95,9 @@ fn bad_input_gives_one_line_errors_naming_the_key() {
         (GOOD.replace("density = 1070.0", "density = 1070.0\n[[cut]]\norigin = [0.0, 0.0, 0.1]\nu = [0.015, 0.0, 0.0, 0.0]\nv = [0.0, 0.06, 0.0]"), "cut[0].u"),
         // Two fixes prescribing different displacements at the same nodes.
         (GOOD.replace("[gravity]", "[[fix]]\nmin = [-inf, -inf, 0.0]\nmax = [inf, inf, 0.0]\ndisplacement = [0.01, 0.0, 0.0]\n[gravity]"), "fix[1].displacement"),
+        // A time step whose run ends at an infinite time (solved, then its
+        // frames' times could not be written).
+        (GOOD.replace("type = \"static\"", "type = \"dynamic\"\ndt = 1e308\nsteps = 2"), "analysis.dt"),
         // So many load steps that their record cannot fit: named as such.
         (GOOD.replace("type = \"static\"", "type = \"static\"\nformulation = \"corotational\"\nload_steps = 9223372036854775807"), "analysis.load_steps"),
     ];

@@ -887,6 +887,15 @@ fn validate_analysis(c: &Checker, a: AnalysisFile) -> Result<(Formulation, Analy
                     "missing required key for a dynamic analysis",
                 )
             })?;
+            // The run's times must be numbers: a dt that overflows them
+            // solved every step and then failed writing its frames' times.
+            let end = o.dt * o.steps as f64;
+            if !end.is_finite() {
+                return Err(c.err(
+                    "analysis.dt",
+                    format!("{:e} over {} steps ends at t = {end}", o.dt, o.steps),
+                ));
+            }
             if let Some(n) = a.newmark {
                 o.beta = c.positive("analysis.newmark.beta", n.beta)?;
                 o.gamma = c.positive("analysis.newmark.gamma", n.gamma)?;
