@@ -47,11 +47,14 @@ pub enum BladeError {
         key: &'static str,
         message: String,
     },
-    #[error("cut[{index}]: key `blade`: the blade never meets the body (its completed sweep cuts no element)")]
-    Misses { index: usize },
-    #[error("cut[{index}]: key `blade`: its swept surface meets cut[{other}] in element {element} or at its nodes: cuts must not intersect and must be at least one element apart")]
+    /// `key`: the blade's own key, `blade` for a straight sweep, `path`
+    /// for keyframes ([`Blade::key`]).
+    #[error("cut[{index}]: key `{key}`: the blade never meets the body (its completed sweep cuts no element)")]
+    Misses { index: usize, key: &'static str },
+    #[error("cut[{index}]: key `{key}`: its swept surface meets cut[{other}] in element {element} or at its nodes: cuts must not intersect and must be at least one element apart")]
     Meets {
         index: usize,
+        key: &'static str,
         other: usize,
         element: usize,
     },
@@ -181,6 +184,17 @@ impl Blade {
             blade.travel = travel;
         }
         Ok(blade)
+    }
+
+    /// The case file's key that gives this blade's motion: `blade` for a
+    /// straight sweep (`blade` + `travel`), `path` for keyframes (with or
+    /// without `blade` as the first).
+    pub fn key(&self) -> &'static str {
+        if self.travel.is_some() {
+            "blade"
+        } else {
+            "path"
+        }
     }
 
     pub fn start(&self) -> f64 {
@@ -595,11 +609,14 @@ impl CutSet {
         for (k, c) in self.items.iter().enumerate() {
             match c {
                 CutItem::Surface(s) => parts.push((k, s.as_ref())),
-                CutItem::Blade(_) => {
+                CutItem::Blade(b) => {
                     if let Some(s) = &swept[k] {
                         parts.push((k, s.surface()));
                     } else if strict {
-                        return Err(BladeError::Misses { index: k });
+                        return Err(BladeError::Misses {
+                            index: k,
+                            key: b.key(),
+                        });
                     }
                 }
             }
@@ -629,7 +646,12 @@ impl CutSet {
                         (CutItem::Blade(_), false) => {
                             parts.remove(j);
                         }
-                        (CutItem::Blade(_), true) => return Err(BladeError::Misses { index: k }),
+                        (CutItem::Blade(b), true) => {
+                            return Err(BladeError::Misses {
+                                index: k,
+                                key: b.key(),
+                            })
+                        }
                         (CutItem::Surface(_), _) => return Err(CutError::Misses(k).into()),
                     }
                 }
@@ -644,8 +666,13 @@ impl CutSet {
                     } else {
                         (a, b)
                     };
+                    let key = match &self.items[index] {
+                        CutItem::Blade(blade) => blade.key(),
+                        CutItem::Surface(_) => "blade",
+                    };
                     return Err(BladeError::Meets {
                         index,
+                        key,
                         other,
                         element,
                     });

@@ -225,7 +225,10 @@ impl Scene {
                         None => {
                             return Err(SceneError::Blade {
                                 file: file.clone(),
-                                source: crate::blade::BladeError::Misses { index: i },
+                                source: crate::blade::BladeError::Misses {
+                                    index: i,
+                                    key: blade.key(),
+                                },
                             })
                         }
                     }

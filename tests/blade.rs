@@ -492,7 +492,20 @@ fn bad_blades_are_errors_naming_the_key() {
         one_blade(Blade::straight(0, p.origin + off, p.origin + p.u + off, p.v, 0.0, 1.0).unwrap());
     let e = cuts.completed(&mesh).expect_err("misses").to_string();
     assert!(
-        e.contains("cut[0]") && e.contains("never meets the body"),
+        e.contains("cut[0]") && e.contains("`blade`") && e.contains("never meets the body"),
+        "{e}"
+    );
+    // The same as a path (keyframes): named by its own key, `path`.
+    let keyframes = |shift: Vector3<f64>| {
+        vec![
+            (0.0, [p.origin + shift, p.origin + p.u + shift]),
+            (1.0, [p.origin + p.v + shift, p.origin + p.u + p.v + shift]),
+        ]
+    };
+    let cuts = one_blade(Blade::new(0, keyframes(off)).unwrap());
+    let e = cuts.completed(&mesh).expect_err("misses").to_string();
+    assert!(
+        e.contains("cut[0]") && e.contains("`path`") && e.contains("never meets the body"),
         "{e}"
     );
     // Through another cut.
@@ -503,7 +516,7 @@ fn bad_blades_are_errors_naming_the_key() {
     };
     let cuts = CutSet {
         items: vec![
-            CutItem::Surface(Box::new(crossing)),
+            CutItem::Surface(Box::new(crossing.clone())),
             CutItem::Blade(Blade::straight(1, p.origin, p.origin + p.u, p.v, 0.0, 1.0).unwrap()),
         ],
         snap: DEFAULT_SNAP,
@@ -511,7 +524,24 @@ fn bad_blades_are_errors_naming_the_key() {
         options: Vec::new(),
     };
     let e = cuts.completed(&mesh).expect_err("meets").to_string();
-    assert!(e.contains("cut[1]") && e.contains("meets cut[0]"), "{e}");
+    assert!(
+        e.contains("cut[1]") && e.contains("`blade`") && e.contains("meets cut[0]"),
+        "{e}"
+    );
+    let cuts = CutSet {
+        items: vec![
+            CutItem::Surface(Box::new(crossing)),
+            CutItem::Blade(Blade::new(1, keyframes(Vector3::zeros())).unwrap()),
+        ],
+        snap: DEFAULT_SNAP,
+        front: xfem_cut::cut::FrontMode::Extend,
+        options: Vec::new(),
+    };
+    let e = cuts.completed(&mesh).expect_err("meets").to_string();
+    assert!(
+        e.contains("cut[1]") && e.contains("`path`") && e.contains("meets cut[0]"),
+        "{e}"
+    );
 }
 
 /// The steps after which a full set-up (every step, no sweep index) changes.
