@@ -152,8 +152,9 @@ fn run() -> Result<()> {
             }
             // Where the solve is, on a terminal only (hidden in logs): a
             // soft corotational scene's Newton can take minutes.
-            // The plan is printed as soon as it is known (before the solve,
-            // where the scene has no blade), so a long run shows what it does.
+            // The plan is printed as soon as it is known (before the solve;
+            // a blade's with the sizes of its start), so a long run shows
+            // what it does.
             let bar = indicatif::ProgressBar::new_spinner();
             bar.enable_steady_tick(std::time::Duration::from_millis(200));
             let mut planned = false;

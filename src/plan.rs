@@ -32,6 +32,9 @@ pub struct Plan {
     pub level_sets: (usize, usize),
     /// Seconds: selections, cut set-up, element data + pattern.
     pub times: [f64; 3],
+    /// A blade's plan printed before its sweep: the sizes are the model's at
+    /// the start (its events grow it; the sweep's summary says how far).
+    pub at_start: bool,
 }
 
 /// Frames a dynamic run keeps for output (the initial state, every
@@ -157,6 +160,17 @@ impl Plan {
             (false, 0) => "no part floats free here".to_string(),
             (false, n) => format!("{n} part(s) float free here"),
         };
+        // Tip functions: the model's, or with a blade those its front will
+        // hold (its models are built as it runs; the plan says what the run
+        // does from its start).
+        let holds_tip = if progressive {
+            scene
+                .cuts
+                .iter()
+                .any(|c| c.front != Some(crate::scene::FrontMode::Extend))
+        } else {
+            model.cut.as_ref().is_some_and(|c| c.n_tip > 0)
+        };
         match dynamic.map(|o| o.mass) {
             Some(MassKind::Lumped) if model.mesh.kind == crate::mesh::ElementKind::Tet10 => add(
                 "mass (lumped, eq. 81-82)",
@@ -166,7 +180,7 @@ impl Plan {
                     floating()
                 ),
             ),
-            Some(MassKind::Lumped) if model.cut.as_ref().is_some_and(|c| c.n_tip > 0) => add(
+            Some(MassKind::Lumped) if holds_tip => add(
                 "mass (lumped, eq. 81-82)",
                 true,
                 &format!(
@@ -285,7 +299,7 @@ impl Plan {
                 if tip_blade {
                     "new shifted DOFs start at zero (the field, its rates and both energies unchanged); where a tip front moved, d, v and a projected together by least squares in the energy norm (|e|^2 + (h^2/4) e:C:e/mu over the elements whose field changed); the energy change at each event is reported"
                 } else {
-                    "new shifted DOFs start at zero: the field, its rates and both energies unchanged (extended fronts: no projection)"
+                    "new shifted DOFs start at zero: the field, its rates and both energies unchanged; an extended front projects only where an event drops or recuts enriched DOFs that hold the field (a path that turns), d, v and a by least squares in the energy norm, and reports the energy change"
                 },
             );
             match (corot, o.event_solve) {
@@ -357,6 +371,7 @@ impl Plan {
             free: model.n_free,
             level_sets: model.cut.as_ref().map_or((0, 0), |c| c.measured),
             times,
+            at_start: false,
         }
     }
 
@@ -380,8 +395,18 @@ impl fmt::Display for Plan {
         }
         write!(
             f,
-            "size: {} elements, {} nodes, {} DOFs ({} Heaviside-, {} tip-enriched nodes), {} free DOFs",
-            self.elements, self.nodes, self.dofs, self.heaviside, self.tip, self.free
+            "size{}: {} elements, {} nodes, {} DOFs ({} Heaviside-, {} tip-enriched nodes), {} free DOFs",
+            if self.at_start {
+                " at the start (the blade's cut events add DOFs: see the sweep)"
+            } else {
+                ""
+            },
+            self.elements,
+            self.nodes,
+            self.dofs,
+            self.heaviside,
+            self.tip,
+            self.free
         )?;
         let (measured, of) = self.level_sets;
         if measured < of {

@@ -141,9 +141,9 @@ pub fn solve_scene_with(
 /// Where a run is, as [`solve_scene_observed`] reports it.
 #[derive(Debug, Clone, Copy)]
 pub enum Progress<'a> {
-    /// The plan, once the model is built and before the solve (static and
-    /// dynamic scenes without a blade; a blade's sweep builds its models as
-    /// it runs, and its plan comes with the result).
+    /// The plan, once the model is built and before the solve. A blade's
+    /// sweep builds its models as it runs: its plan is the model's at the
+    /// start ([`Plan::at_start`]; the result holds the last model's).
     Planned(&'a Plan),
     /// A static scene: each residual its Newton iterations evaluate.
     Newton(NewtonProgress),
@@ -188,20 +188,27 @@ pub fn solve_scene_observed(
         },
     ) = (scene.has_blade(), &scene.analysis)
     {
+        // The plan names the mesh as it was read, before the sweep and after it.
+        let name_mesh = |plan: &mut Plan| {
+            if let Some(p) = mesh_override {
+                plan.mesh_from(p);
+            }
+            plan.mesh_notes(&notes);
+        };
         let mut result = solve_progressive(
             scene,
             mesh,
-            *options,
-            *output_every,
-            keep_frames,
-            parallelism,
+            Progressive {
+                options: *options,
+                output_every: *output_every,
+                keep_frames,
+                parallelism,
+            },
+            &name_mesh,
             observe,
         )?;
         result.timings.mesh = t_mesh;
-        if let Some(p) = mesh_override {
-            result.plan.mesh_from(p);
-        }
-        result.plan.mesh_notes(&notes);
+        name_mesh(&mut result.plan);
         return Ok(result);
     }
     // The fill-reducing rule of `Cholesky::fill_reducing` (METIS nested
@@ -347,15 +354,30 @@ pub fn solve_scene_observed(
 
 /// A dynamic scene whose blades cut while it runs ([`crate::blade::run_dynamic`]):
 /// the model is rebuilt at each cut event with the scene's selections.
-fn solve_progressive(
-    scene: &Scene,
-    mesh: TetMesh,
+/// How a blade's dynamic scene runs ([`solve_progressive`]).
+struct Progressive {
     options: DynamicOptions,
     output_every: usize,
     keep_frames: bool,
     parallelism: Parallelism,
+}
+
+/// A dynamic scene with a blade: its models are built as the sweep runs.
+/// The plan of the model at the start comes first (`Progress::Planned`,
+/// its sizes marked as the start's), the result holds the last model's.
+fn solve_progressive(
+    scene: &Scene,
+    mesh: TetMesh,
+    run: Progressive,
+    name_mesh: &dyn Fn(&mut Plan),
     observe: &mut dyn FnMut(Progress<'_>),
 ) -> Result<RunResult, RunError> {
+    let Progressive {
+        options,
+        output_every,
+        keep_frames,
+        parallelism,
+    } = run;
     let file = scene.file.display().to_string();
     let blade_err = |source| RunError::Blade {
         file: file.clone(),
@@ -382,6 +404,12 @@ fn solve_progressive(
         options,
         parallelism,
         |step, model, nm| {
+            if step == 0 {
+                let mut plan = Plan::new(scene, model, mesh.n_elements(), [t_setup, 0.0, 0.0]);
+                plan.at_start = true;
+                name_mesh(&mut plan);
+                observe(Progress::Planned(&plan));
+            }
             if step > 0 {
                 observe(Progress::Step {
                     step,

@@ -415,7 +415,7 @@ fn the_plan_shows_the_options_the_run_uses() {
         ),
         (
             blade("front = \"extend\"\n"),
-            "[run ] cut events: the state carried over (new shifted DOFs start at zero: the field, its rates and both energies unchanged (extended fronts: no projection)",
+            "[run ] cut events: the state carried over (new shifted DOFs start at zero: the field, its rates and both energies unchanged; an extended front projects only where an event drops or recuts enriched DOFs that hold the field (a path that turns)",
             "projected together",
         ),
         (dynamic(""), "[run ] mass", "cut events"),
