@@ -514,34 +514,29 @@ fn bad_blades_are_errors_naming_the_key() {
         u: Vector3::new(0.0, 2.0, 0.0),
         v: Vector3::new(0.0, 0.0, 1.2),
     };
-    let cuts = CutSet {
-        items: vec![
-            CutItem::Surface(Box::new(crossing.clone())),
-            CutItem::Blade(Blade::straight(1, p.origin, p.origin + p.u, p.v, 0.0, 1.0).unwrap()),
-        ],
-        snap: DEFAULT_SNAP,
-        front: xfem_cut::cut::FrontMode::Extend,
-        options: Vec::new(),
-    };
-    let e = cuts.completed(&mesh).expect_err("meets").to_string();
-    assert!(
-        e.contains("cut[1]") && e.contains("`blade`") && e.contains("meets cut[0]"),
-        "{e}"
-    );
-    let cuts = CutSet {
-        items: vec![
-            CutItem::Surface(Box::new(crossing)),
-            CutItem::Blade(Blade::new(1, keyframes(Vector3::zeros())).unwrap()),
-        ],
-        snap: DEFAULT_SNAP,
-        front: xfem_cut::cut::FrontMode::Extend,
-        options: Vec::new(),
-    };
-    let e = cuts.completed(&mesh).expect_err("meets").to_string();
-    assert!(
-        e.contains("cut[1]") && e.contains("`path`") && e.contains("meets cut[0]"),
-        "{e}"
-    );
+    // Through the crossing plane, as a straight sweep and as a path.
+    for (blade, key) in [
+        (
+            Blade::straight(1, p.origin, p.origin + p.u, p.v, 0.0, 1.0),
+            "`blade`",
+        ),
+        (Blade::new(1, keyframes(Vector3::zeros())), "`path`"),
+    ] {
+        let cuts = CutSet {
+            items: vec![
+                CutItem::Surface(Box::new(crossing.clone())),
+                CutItem::Blade(blade.unwrap()),
+            ],
+            snap: DEFAULT_SNAP,
+            front: xfem_cut::cut::FrontMode::Extend,
+            options: Vec::new(),
+        };
+        let e = cuts.completed(&mesh).expect_err("meets").to_string();
+        assert!(
+            e.contains("cut[1]") && e.contains(key) && e.contains("meets cut[0]"),
+            "{e}"
+        );
+    }
 }
 
 /// The steps after which a full set-up (every step, no sweep index) changes.
