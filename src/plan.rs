@@ -160,17 +160,15 @@ impl Plan {
             (false, 0) => "no part floats free here".to_string(),
             (false, n) => format!("{n} part(s) float free here"),
         };
-        // Tip functions: the model's, or with a blade those its front will
-        // hold (its models are built as it runs; the plan says what the run
-        // does from its start).
-        let holds_tip = if progressive {
-            scene
-                .cuts
-                .iter()
-                .any(|c| c.front != Some(crate::scene::FrontMode::Extend))
-        } else {
-            model.cut.as_ref().is_some_and(|c| c.n_tip > 0)
-        };
+        // Tip functions: the model's, or those a blade's tip front will hold
+        // while its edge is inside the body (its models are built as it
+        // runs; the plan says what the run does from its start).
+        let holds_tip = model.cut.as_ref().is_some_and(|c| c.n_tip > 0)
+            || (progressive
+                && scene.cuts.iter().any(|c| {
+                    matches!(c.geometry, crate::scene::CutGeometry::Blade { .. })
+                        && c.front != Some(crate::scene::FrontMode::Extend)
+                }));
         match dynamic.map(|o| o.mass) {
             Some(MassKind::Lumped) if model.mesh.kind == crate::mesh::ElementKind::Tet10 => add(
                 "mass (lumped, eq. 81-82)",
