@@ -39,7 +39,9 @@ pub fn lump_cell_mass(
 }
 
 /// Lumped masses of an element's integration cells ([`lump_cell_mass`] per
-/// cell, `volumes[c]`, `int_n[c]`, `int_n2[c]` its ∫N_k and ∫N_k²). Tet4:
+/// cell, `volumes[c]`, `int_n[c]`, `int_n2[c]` its ∫N_k and ∫N_k²; the
+/// model passes a cut Tet10 element's sides as its cells, each the sum of
+/// its sub-tets, so that the masses do not depend on the split). Tet4:
 /// each cell's row sums, whose sum over the cells is the uncut element's.
 /// Tet10: each cell's HRZ shares, then balanced (iterative proportional
 /// fitting) so that each node's shares sum to its HRZ mass in the uncut
