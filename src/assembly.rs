@@ -130,14 +130,28 @@ pub struct Request<'a> {
     pub exact_tangent: bool,
 }
 
+/// What [`for_each_group`] hands its visitor as the gradient of the nodal
+/// vector x.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Gradient {
+    /// F = I + Σ_a x_a ⊗ ∇φ_a: x is a displacement.
+    Deformation,
+    /// ∇x = Σ_a x_a ⊗ ∇φ_a alone: x is a velocity or a direction, whose
+    /// gradient F − I would round against the identity (its last bits then
+    /// depended on its size: the stiffness damping β_R K v of a scene in
+    /// another unit of time differed in the last bits).
+    Vector,
+}
+
 /// The one gather/group loop of the crate: for each group g of each element,
-/// calls `visit(g, shapes, values, grads, F, scratch)` with `values` the
-/// element's x_a and F = I + Σ_a x_a ⊗ ∇φ_a, the deformation gradient of
-/// the nodal vector `x` (all DOFs; a dense group's averaged gradients give F̄).
+/// calls `visit(g, shapes, values, grads, G, scratch)` with `values` the
+/// element's x_a and G the [`Gradient`] `gradient` of the nodal vector `x`
+/// (all DOFs; a dense group's averaged gradients give F̄).
 fn for_each_group(
     model: &Model,
     elements: Range<usize>,
     x: &[f64],
+    gradient: Gradient,
     disp: &mut [Vector3<f64>],
     scratch: &mut Scratch,
     mut visit: impl FnMut(usize, &[u32], &[Vector3<f64>], &[Vector3<f64>], &Matrix3<f64>, &mut Scratch),
@@ -152,7 +166,13 @@ fn for_each_group(
         for g in el.groups.clone() {
             let start = model.groups[g].grads as usize;
             let grads = &model.grads[start..start + m];
-            let f = GroupKernel::deformation_gradient(grads, |a| disp[a]);
+            let f = match gradient {
+                Gradient::Deformation => GroupKernel::deformation_gradient(grads, |a| disp[a]),
+                Gradient::Vector => grads
+                    .iter()
+                    .enumerate()
+                    .fold(Matrix3::zeros(), |h, (a, g)| h + disp[a] * g.transpose()),
+            };
             visit(g, shapes, &disp[..m], grads, &f, scratch);
         }
     }
@@ -166,6 +186,7 @@ fn for_each_inverted(model: &Model, d: &[f64], mut visit: impl FnMut(usize)) {
         model,
         0..model.elements.len(),
         d,
+        Gradient::Deformation,
         &mut ws.disp,
         &mut ws.scratch,
         |g, _, _, _, f, _| {
@@ -401,6 +422,7 @@ impl Pass<'_> {
             model,
             elements,
             self.d,
+            Gradient::Deformation,
             disp,
             scratch,
             |g, shapes, values, grads, f, scratch| {
@@ -570,9 +592,10 @@ pub fn tangent_product(
         model,
         0..model.elements.len(),
         z,
+        Gradient::Vector,
         disp,
         scratch,
-        |g, shapes, values, grads, f, scratch| {
+        |g, shapes, values, grads, gz, scratch| {
             let rotation = rot.0[g];
             if let Some(stiffness) = model.group_stiffness(g) {
                 // y_a += R (K Rᵀz)_a.
@@ -597,8 +620,8 @@ pub fn tangent_product(
                 grads,
                 rotation,
             };
-            // ∇z = F(z) − I, then the local strain of Rᵀz: sym(Rᵀ ∇z).
-            let rgz = kernel.rotation.transpose() * (f - Matrix3::identity());
+            // The local strain of Rᵀz: sym(Rᵀ ∇z).
+            let rgz = kernel.rotation.transpose() * gz;
             let eps = (rgz + rgz.transpose()) * 0.5;
             let sigma = kernel.stress(&eps);
             kernel.add_forces(&sigma, |a, fa| add_nodal(y, shapes, a, &fa));

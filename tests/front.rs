@@ -2127,85 +2127,102 @@ fn the_ramp_keeps_the_condition_of_the_plain_blending() {
     }
 }
 
-/// A scene written in another unit of length (every length × s, Young's
-/// modulus / s, density / s³, gravity × s: the same body in mm instead of m
-/// for s = 1000) has every displacement × s. With s a power of two the
-/// arithmetic scales exactly, so the solutions agree to the bit, Newton's
-/// stopping decisions included. They did not while the branch functions
-/// were √r: a tip DOF was a length over √length, the Euclidean norms of
-/// Newton's relative residual and of Anderson's mixing weighed the tip rows
-/// by √s against the others, and Newton stopped at another iterate (s =
-/// 1024: 3.4e-8 of the largest displacement in the Tet10 scene, 6.1e-10 in
-/// the Tet4 blade's). Over √h ([`CutSetup::tip_scale`]) the tip DOFs are
-/// lengths like the others.
-#[test]
-fn a_scene_in_millimetres_solves_as_in_metres() {
-    use std::path::Path;
-    use xfem_cut::run::{probe_values, solve_scene};
-    use xfem_cut::scene::Scene;
-    let fmt = |v: [f64; 3], s: f64| format!("[{:?}, {:?}, {:?}]", v[0] * s, v[1] * s, v[2] * s);
-    // A plane with its front inside Tet10 elements, and a Tet4 blade with a
-    // geometric tip front sweeping while the top face is moved; corotational
-    // dynamics on the default lagged factor, lumped mass.
-    let tet10 = |s: f64| {
+/// A scene's text in units `l`, `t` ([`scenes_in_units`]).
+type SceneInUnits = fn(f64, f64) -> String;
+
+/// Two dynamic scenes in units scaled from SI: every length × `l`, every
+/// time × `t` (Young's modulus / l, density × t² / l³, gravity × l / t²,
+/// Rayleigh's mass factor / t and stiffness factor × t). A plane with its
+/// front inside Tet10 elements, and a Tet4 blade with a geometric tip
+/// front sweeping while the top face is moved; corotational dynamics on
+/// the default lagged factor, lumped mass, Rayleigh damping.
+fn scenes_in_units() -> [(&'static str, SceneInUnits); 2] {
+    fn fmt(v: [f64; 3], s: f64) -> String {
+        format!("[{:?}, {:?}, {:?}]", v[0] * s, v[1] * s, v[2] * s)
+    }
+    fn tet10(l: f64, t: f64) -> String {
         format!(
             "name = \"units\"\n[body]\nbox = [[0.0, 0.0, 0.0], {}]\nlevels = [[2, 2, 5]]\n\
              element = \"tet10\"\n[material]\nyoung = {:?}\npoisson = 0.3\ndensity = {:?}\n\
              [[cut]]\norigin = {}\nu = {}\nv = {}\n\
              [[fix]]\nmin = [-inf, -inf, 0.0]\nmax = [inf, inf, 0.0]\ndisplacement = [0.0, 0.0, 0.0]\n\
              [gravity]\nacceleration = {}\n[analysis]\ntype = \"dynamic\"\n\
-             formulation = \"corotational\"\ndt = 0.01\nsteps = 14\n\
-             rayleigh = {{ mass = 2.0, stiffness = 0.001 }}\n[[probe]]\npoints = [{}, {}, {}]\n",
-            fmt([0.05, 0.03, 0.1], s),
-            3e5 / s,
-            1000.0 / (s * s * s),
-            fmt([0.0244, -0.0028, 0.0622], s),
-            fmt([0.0545, -0.0013, -0.0226], s),
-            fmt([-0.00005, 0.0365, 0.0015], s),
-            fmt([-2.7, -4.6, -8.4], s),
-            fmt([0.0353, 0.0097, 0.0886], s),
-            fmt([0.0084, 0.0178, 0.0385], s),
-            fmt([0.0492, 0.0042, 0.0880], s),
+             formulation = \"corotational\"\ndt = {:?}\nsteps = 14\n\
+             rayleigh = {{ mass = {:?}, stiffness = {:?} }}\n[[probe]]\npoints = [{}, {}, {}]\n",
+            fmt([0.05, 0.03, 0.1], l),
+            3e5 / l,
+            1000.0 * t * t / (l * l * l),
+            fmt([0.0244, -0.0028, 0.0622], l),
+            fmt([0.0545, -0.0013, -0.0226], l),
+            fmt([-0.00005, 0.0365, 0.0015], l),
+            fmt([-2.7, -4.6, -8.4], l / (t * t)),
+            0.01 * t,
+            2.0 / t,
+            0.001 * t,
+            fmt([0.0353, 0.0097, 0.0886], l),
+            fmt([0.0084, 0.0178, 0.0385], l),
+            fmt([0.0492, 0.0042, 0.0880], l),
         )
-    };
-    let blade = |s: f64| {
+    }
+    fn blade(l: f64, t: f64) -> String {
         format!(
             "name = \"units\"\n[body]\nbox = [[0.0, 0.0, 0.0], {}]\nlevels = [[3, 3, 5]]\n\
              element = \"tet4\"\n[material]\nyoung = {:?}\npoisson = 0.0\ndensity = {:?}\n\
-             [[cut]]\nblade = [{}, {}]\ntravel = {}\nstart = 0.02\nend = 0.088\ntip_radius = {:?}\n\
+             [[cut]]\nblade = [{}, {}]\ntravel = {}\nstart = {:?}\nend = {:?}\ntip_radius = {:?}\n\
              [[fix]]\nmin = [-inf, -inf, 0.0]\nmax = [inf, inf, 0.0]\ndisplacement = [0.0, 0.0, 0.0]\n\
              [[fix]]\nmin = [-inf, -inf, {:?}]\nmax = [inf, inf, {:?}]\ndisplacement = {}\n\
              [gravity]\nacceleration = {}\n[analysis]\ntype = \"dynamic\"\n\
-             formulation = \"corotational\"\ndt = 0.01\nsteps = 11\n\
-             rayleigh = {{ mass = 2.0, stiffness = 0.001 }}\n[[probe]]\npoints = [{}, {}, {}]\n",
-            fmt([0.1, 0.06, 0.1], s),
-            1e3 / s,
-            1000.0 / (s * s * s),
-            fmt([0.0182, -0.00065, 0.0647], s),
-            fmt([0.0294, 0.0177, 0.0845], s),
-            fmt([0.0255, 0.0070, -0.0193], s),
-            0.024 * s,
-            0.1 * s,
-            0.1 * s,
-            fmt([-0.00024, 0.00021, -0.00043], s),
-            fmt([-6.7, 3.0, 5.6], s),
-            fmt([0.0375, 0.0076, 0.0678], s),
-            fmt([0.0560, 0.0015, 0.0995], s),
-            fmt([0.0821, 0.0007, 0.0946], s),
+             formulation = \"corotational\"\ndt = {:?}\nsteps = 11\n\
+             rayleigh = {{ mass = {:?}, stiffness = {:?} }}\n[[probe]]\npoints = [{}, {}, {}]\n",
+            fmt([0.1, 0.06, 0.1], l),
+            1e3 / l,
+            1000.0 * t * t / (l * l * l),
+            fmt([0.0182, -0.00065, 0.0647], l),
+            fmt([0.0294, 0.0177, 0.0845], l),
+            fmt([0.0255, 0.0070, -0.0193], l),
+            0.02 * t,
+            0.088 * t,
+            0.024 * l,
+            0.1 * l,
+            0.1 * l,
+            fmt([-0.00024, 0.00021, -0.00043], l),
+            fmt([-6.7, 3.0, 5.6], l / (t * t)),
+            0.01 * t,
+            2.0 / t,
+            0.001 * t,
+            fmt([0.0375, 0.0076, 0.0678], l),
+            fmt([0.0560, 0.0015, 0.0995], l),
+            fmt([0.0821, 0.0007, 0.0946], l),
         )
-    };
-    let probes = |text: String| {
-        let scene = Scene::parse(&text, Path::new("units.toml")).unwrap();
-        let result = solve_scene(&scene, 0, None, false).unwrap();
-        probe_values(&scene, &result).unwrap()
-    };
+    }
+    [("Tet10 plane", tet10), ("Tet4 blade", blade)]
+}
+
+/// The probes of a scene's text (its files relative to the working directory).
+fn scene_probes(text: &str) -> Vec<nalgebra::Vector3<f64>> {
+    use xfem_cut::run::{probe_values, solve_scene};
+    use xfem_cut::scene::Scene;
+    let scene = Scene::parse(text, std::path::Path::new("units.toml")).unwrap();
+    let result = solve_scene(&scene, 0, None, false).unwrap();
+    probe_values(&scene, &result).unwrap()
+}
+
+/// A scene written in another unit of length ([`scenes_in_units`] with
+/// l = s: the same body in mm instead of m for s = 1000) has every
+/// displacement × s. With s a power of two the arithmetic scales exactly,
+/// so the solutions agree to the bit, Newton's stopping decisions included.
+/// They did not while the branch functions were √r: a tip DOF was a length
+/// over √length, the Euclidean norms of Newton's relative residual and of
+/// Anderson's mixing weighed the tip rows by √s against the others, and
+/// Newton stopped at another iterate (s = 1024: 3.4e-8 of the largest
+/// displacement in the Tet10 scene, 6.1e-10 in the Tet4 blade's). Over √h
+/// ([`CutSetup::tip_scale`]) the tip DOFs are lengths like the others.
+#[test]
+fn a_scene_in_millimetres_solves_as_in_metres() {
     let s = 1024.0;
-    for (name, scene) in [
-        ("Tet10 plane", &tet10 as &dyn Fn(f64) -> String),
-        ("Tet4 blade", &blade),
-    ] {
-        let metres = probes(scene(1.0));
-        let millimetres = probes(scene(s));
+    for (name, scene) in scenes_in_units() {
+        let metres = scene_probes(&scene(1.0, 1.0));
+        let millimetres = scene_probes(&scene(s, 1.0));
         let largest = metres.iter().fold(0.0f64, |m, u| m.max(u.amax()));
         let worst = metres
             .iter()
@@ -2217,5 +2234,31 @@ fn a_scene_in_millimetres_solves_as_in_metres() {
         );
         assert!(largest > 0.0);
         assert!(worst <= 1e-12 * largest, "{name}: {:e}", worst / largest);
+    }
+}
+
+/// The same scenes in another unit of time ([`scenes_in_units`] with t = s,
+/// s = 1024: times in ~ms) give the same displacements, to the bit (every
+/// operation scales by a power of two). They differed in the last bits
+/// (3.5e-13 of the largest displacement in the Tet10 scene) where Rayleigh's stiffness
+/// damping took the gradient of the velocity as F(v) − I, rounded against
+/// the identity (`assembly::Gradient::Vector`).
+#[test]
+fn a_scene_in_milliseconds_solves_as_in_seconds() {
+    let s = 1024.0;
+    for (name, scene) in scenes_in_units() {
+        let seconds = scene_probes(&scene(1.0, 1.0));
+        let milliseconds = scene_probes(&scene(1.0, s));
+        let largest = seconds.iter().fold(0.0f64, |m, u| m.max(u.amax()));
+        let worst = seconds
+            .iter()
+            .zip(&milliseconds)
+            .fold(0.0f64, |m, (a, b)| m.max((a - b).amax()));
+        println!(
+            "{name}: largest displacement {largest:.3e}, in ms off by {:.1e}",
+            worst / largest
+        );
+        assert!(largest > 0.0);
+        assert_eq!(worst, 0.0, "{name}: {:e}", worst / largest);
     }
 }
