@@ -2182,8 +2182,8 @@ struct LumpingGroup {
 /// Tet10: one group a side (the cells of a side summed), since its HRZ
 /// shares and their balancing ([`lump_element_mass`]) are not additive
 /// over cells: lumped per sub-tet, the masses were those of the split the
-/// element's vertex order made (a mesh numbered otherwise moved a damped
-/// Tet10 scene's probes by up to 9e-7 of the largest; summed per side,
+/// element's node numbering made (a mesh numbered otherwise moved a damped
+/// Tet10 scene's probes by up to 6.2e-7 of the largest; summed per side,
 /// only what the side is counts). Tet4: one group a cell (its row sums
 /// add up, and the ramp's factors `heaviside_scale` are per cell).
 fn lumping_groups(
