@@ -6,14 +6,16 @@
 //! blade enters, the mean step of the sweep with its events, the step
 //! after); with `--out DIR` also writes `DIR/data/STEM.csv` and
 //! `DIR/STEM.svg` ([`xfem_cut::study::sweep`]), STEM `sweep_series` with
-//! `_tip`, `_corotational`, `_tet10` appended as they apply. The front is
+//! `_tip`, `_corotational`, `_tet10`, `_event_travel_D` appended as they apply. The front is
 //! extended through the elements it is in, or with `tip` tip-enriched (the
 //! default of a case file); corotational steps take the lagged factor a
 //! case file defaults to ([`xfem_cut::dynamics::DEFAULT_LAGGED`]). `refactorise` solves the linear steps after
 //! events by refactorisation instead of the default bordered solve on the
-//! last factor; `border K` sets the border limit.
-//! `cargo run --release --example sweep_series -- [NX NY NZ] [linear|corotational] [tet10] [tip] [refactorise | border K] [--out reports]`
-use xfem_cut::blade::{run_dynamic, CutSet};
+//! last factor; `border K` sets the border limit; `event_travel=D` gives
+//! the blade an `event_travel` of D m (a cut event only once its edge has
+//! moved that far: the seed's blade moves 0.3 mm a step).
+//! `cargo run --release --example sweep_series -- [NX NY NZ] [linear|corotational] [tet10] [tip] [refactorise | border K] [event_travel=D] [--out reports]`
+use xfem_cut::blade::{run_dynamic, CutItem, CutSet};
 use xfem_cut::cut::FrontMode;
 use xfem_cut::dynamics::{DynamicOptions, EventSolve, DEFAULT_EVENT_SOLVE, DEFAULT_LAGGED};
 use xfem_cut::model::Formulation;
@@ -58,7 +60,7 @@ fn main() {
         .map(std::path::PathBuf::from);
     let mesh = beam_mesh(div, tet10);
     let tip = args.iter().any(|a| a == "tip");
-    let cuts = if tip {
+    let mut cuts = if tip {
         CutSet {
             front: FrontMode::Tip,
             ..seed_blade(0.1, 0.6)
@@ -66,6 +68,15 @@ fn main() {
     } else {
         seed_blade(0.1, 0.6)
     };
+    let event_travel: Option<f64> = args
+        .iter()
+        .find_map(|a| a.strip_prefix("event_travel="))
+        .map(|d| d.parse().expect("event_travel=D, D in m"));
+    for item in &mut cuts.items {
+        if let CutItem::Blade(b) = item {
+            b.event_travel = event_travel;
+        }
+    }
     let build = |cut| seed_beam(mesh.clone(), formulation, cut);
     // The step a case file without `linear_solver` runs: modified Newton
     // on a lagged factor (a linear scene solves once on its factor).
@@ -157,14 +168,15 @@ fn main() {
     if let Some(dir) = out {
         std::fs::create_dir_all(dir.join("data")).unwrap();
         let stem = format!(
-            "sweep_series{}{}{}",
+            "sweep_series{}{}{}{}",
             if tip { "_tip" } else { "" },
             if formulation == Formulation::Corotational {
                 "_corotational"
             } else {
                 ""
             },
-            if tet10 { "_tet10" } else { "" }
+            if tet10 { "_tet10" } else { "" },
+            event_travel.map_or(String::new(), |d| format!("_event_travel_{d}"))
         );
         sweep::write_csv(&dir.join(format!("data/{stem}.csv")), &rows).unwrap();
         let title = format!(

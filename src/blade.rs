@@ -83,6 +83,10 @@ pub struct Blade {
     travel: Option<Vector3<f64>>,
     /// Index of its `[[cut]]` in the scene (for errors).
     pub index: usize,
+    /// `event_travel` (m): during a sweep, a cut event only once the edge
+    /// has moved this far since the last one (or passed its end); `None`:
+    /// at every step the cut grows ([`event_due`]).
+    pub event_travel: Option<f64>,
 }
 
 impl Blade {
@@ -138,6 +142,7 @@ impl Blade {
             keyframes,
             travel: None,
             index,
+            event_travel: None,
         };
         // A path's completed strip must be a surface (every prefix of it then is).
         if !blade.is_straight() {
@@ -523,9 +528,10 @@ impl CutSet {
                     TriangleSurface::read(path)
                         .map_err(|source| BladeError::Surface { index, source })?,
                 )),
-                CutGeometry::Blade { keyframes, travel } => {
-                    CutItem::Blade(Blade::from_keyframes(index, keyframes.clone(), *travel)?)
-                }
+                CutGeometry::Blade { keyframes, travel } => CutItem::Blade(Blade {
+                    event_travel: c.event_travel,
+                    ..Blade::from_keyframes(index, keyframes.clone(), *travel)?
+                }),
             });
         }
         // Each cut as its table says (as the static set-up takes them:
@@ -2188,6 +2194,24 @@ pub fn run_dynamic(
     run_dynamic_with(cuts, mesh, build, opts, Parallelism::SEQUENTIAL, observe)
 }
 
+/// Whether a sweep takes a cut event at time `t` where its cut grew, the
+/// last one at `last`: always, unless every blade gives `event_travel`
+/// (a modelled front that lags the blade, for fewer events) and none has
+/// moved that far since `last` (either end of its edge) nor passed its end.
+/// A set without blades (built in code) is always due.
+pub fn event_due(cuts: &CutSet, last: f64, t: f64) -> bool {
+    let mut blades = cuts.blades().peekable();
+    blades.peek().is_none()
+        || blades.any(|b| match b.event_travel {
+            None => true,
+            Some(reach) => {
+                let (from, to) = (b.edge_at(last), b.edge_at(t));
+                (last < b.end() && t >= b.end())
+                    || (0..2).any(|k| (to[k] - from[k]).norm() >= reach)
+            }
+        })
+}
+
 /// [`run_dynamic`] on `parallelism`'s threads: the steps' element loops
 /// (forces, tangents, rotations) and, at each cut event, the integration
 /// of the changed elements and the projection's (the same run whatever
@@ -2226,6 +2250,9 @@ pub fn run_dynamic_with(
     // A linear model's stiffness carried over the last event.
     let mut forces: Option<LinearForces> = None;
     let mut step = 0;
+    // The time of the last cut event (the blades' `event_travel` is
+    // measured from there).
+    let mut last_event = 0.0;
     loop {
         let mut nm = Newmark::on_factor(&model, factor, opts)?;
         if parallelism.n_threads() > 1 {
@@ -2263,18 +2290,20 @@ pub fn run_dynamic_with(
             observe(step, &model, &mut nm);
             let t = Instant::now();
             let t_now = nm.state.time;
-            let setup = if index.may_change(t_now - opts.dt, t_now) {
-                sweep.checks += 1;
-                let s = cuts.setup_at(mesh, t_now)?;
-                (!same_setup(model.cut.as_ref(), s.as_ref())).then_some(s)
-            } else {
-                None
-            };
+            let setup =
+                if event_due(cuts, last_event, t_now) && index.may_change(t_now - opts.dt, t_now) {
+                    sweep.checks += 1;
+                    let s = cuts.setup_at(mesh, t_now)?;
+                    (!same_setup(model.cut.as_ref(), s.as_ref())).then_some(s)
+                } else {
+                    None
+                };
             sweep.check_seconds += t.elapsed().as_secs_f64();
             sweep
                 .series
                 .push((nm.state.time, step_time, setup.is_some()));
             if let Some(s) = setup {
+                last_event = t_now;
                 break Some(s);
             }
         };

@@ -291,6 +291,26 @@ impl Plan {
                 matches!(c.geometry, crate::scene::CutGeometry::Blade { .. })
                     && c.front != Some(crate::scene::FrontMode::Extend)
             });
+            // Blades giving `event_travel` take an event only once their
+            // edge has moved that far (every blade must, for fewer events).
+            let blades: Vec<Option<f64>> = scene
+                .cuts
+                .iter()
+                .filter(|c| matches!(c.geometry, crate::scene::CutGeometry::Blade { .. }))
+                .map(|c| c.event_travel)
+                .collect();
+            let lagging: Option<Vec<f64>> = blades.iter().copied().collect();
+            add(
+                "cut events",
+                true,
+                &match lagging {
+                    Some(reach) if !reach.is_empty() => format!(
+                        "once a blade's edge has moved its event_travel ({} m) since the last event, or passed its end: the modelled cut lags the blade by up to that",
+                        reach.iter().map(|r| format!("{r}")).collect::<Vec<_>>().join(", ")
+                    ),
+                    _ => "at every step the cut grows".to_string(),
+                },
+            );
             add(
                 "cut events: the state carried over",
                 true,

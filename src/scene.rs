@@ -168,6 +168,9 @@ pub struct CutSpec {
     pub front: Option<FrontMode>,
     /// `tip_radius` (m, > 0): tip-enrich every node within it of the front.
     pub tip_radius: Option<f64>,
+    /// `event_travel` (m, > 0; blades only): a cut event once the blade's
+    /// edge has moved this far since the last one ([`crate::blade::event_due`]).
+    pub event_travel: Option<f64>,
 }
 
 #[derive(Debug, Clone)]

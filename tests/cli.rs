@@ -266,6 +266,9 @@ fn cut_keys_are_checked_per_cut() {
         (with_cut("snap = 0.01"), "cut[0].origin", "missing"),
         (with_cut("travel = [0.01, 0.0, 0.0]"), "cut[0].blade", "need a blade"),
         (with_cut(&format!("{PATCH}\nstart = 0.1")), "cut[0].start", "only with a blade"),
+        (with_cut(&format!("{PATCH}\nevent_travel = 0.001")), "cut[0].event_travel", "only with a blade"),
+        (with_cut(&format!("{blade}\ntravel = [0.015, 0.0, 0.0]\nstart = 0.0\nend = 0.1\nevent_travel = 0.0")), "cut[0].event_travel", "positive"),
+        (with_cut(&format!("{blade}\ntravel = [0.015, 0.0, 0.0]\nstart = 0.0\nend = 0.1\nevent_travel = inf")), "cut[0].event_travel", "finite"),
         (with_cut("surface = \"no_such.stl\""), "cut[0].surface", "no such file"),
         (with_cut("surface = \"incision.obj\""), "cut[0].surface", ".stl or .msh"),
         (with_cut(blade), "cut[0].travel", "missing"),
@@ -419,6 +422,12 @@ fn the_plan_shows_the_options_the_run_uses() {
             "projected together",
         ),
         (dynamic(""), "[run ] mass", "cut events"),
+        (blade(""), "[run ] cut events (at every step the cut grows)", "event_travel"),
+        (
+            blade("event_travel = 0.002\n"),
+            "[run ] cut events (once a blade's edge has moved its event_travel (0.002 m) since the last event",
+            "every step the cut grows",
+        ),
     ] {
         let (out, _dir) = run_output(&text);
         let stdout = String::from_utf8_lossy(&out.stdout);

@@ -86,6 +86,7 @@ pub struct CutFile {
     pub snap: Option<f64>,
     pub front: Option<FrontMode>,
     pub tip_radius: Option<f64>,
+    pub event_travel: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -591,7 +592,8 @@ fn validate_cut(c: &Checker, k: &str, t: CutFile, base: &Path) -> Result<CutSpec
         || t.start.is_some()
         || t.end.is_some()
         || t.path.is_some()
-        || t.times.is_some();
+        || t.times.is_some()
+        || t.event_travel.is_some();
     // A blade given by its path alone: the edge at the first keyframe.
     let inferred = t.blade.is_none() && !patch && t.surface.is_none() && t.travel.is_none();
     let blade = match (&t.blade, &t.path) {
@@ -604,7 +606,7 @@ fn validate_cut(c: &Checker, k: &str, t: CutFile, base: &Path) -> Result<CutSpec
         0 if blade_keys => {
             return Err(c.err(
                 key("blade"),
-                "missing: travel/path/times/start/end need a blade",
+                "missing: travel/path/times/start/end/event_travel need a blade",
             ))
         }
         0 => {
@@ -628,6 +630,7 @@ fn validate_cut(c: &Checker, k: &str, t: CutFile, base: &Path) -> Result<CutSpec
             ("end", t.end.is_some()),
             ("path", t.path.is_some()),
             ("times", t.times.is_some()),
+            ("event_travel", t.event_travel.is_some()),
         ]
         .into_iter()
         .find(|(_, b)| *b)
@@ -815,11 +818,16 @@ fn validate_cut(c: &Checker, k: &str, t: CutFile, base: &Path) -> Result<CutSpec
             "only with front = \"tip\" (an extended front has no tip enrichment)",
         ));
     }
+    let event_travel = match t.event_travel {
+        Some(d) => Some(c.positive(&key("event_travel"), d)?),
+        None => None,
+    };
     Ok(CutSpec {
         geometry,
         snap,
         front: t.front,
         tip_radius,
+        event_travel,
     })
 }
 
