@@ -2251,8 +2251,10 @@ pub fn run_dynamic_with(
     let mut forces: Option<LinearForces> = None;
     let mut step = 0;
     // The time of the last cut event (the blades' `event_travel` is
-    // measured from there).
+    // measured from there), and where steps were not due for one, the start
+    // of the sweep the model has not been checked against.
     let mut last_event = 0.0;
+    let mut unchecked_since: Option<f64> = None;
     loop {
         let mut nm = Newmark::on_factor(&model, factor, opts)?;
         if parallelism.n_threads() > 1 {
@@ -2290,14 +2292,16 @@ pub fn run_dynamic_with(
             observe(step, &model, &mut nm);
             let t = Instant::now();
             let t_now = nm.state.time;
-            let setup =
-                if event_due(cuts, last_event, t_now) && index.may_change(t_now - opts.dt, t_now) {
-                    sweep.checks += 1;
-                    let s = cuts.setup_at(mesh, t_now)?;
-                    (!same_setup(model.cut.as_ref(), s.as_ref())).then_some(s)
-                } else {
-                    None
-                };
+            let since = unchecked_since.unwrap_or(t_now - opts.dt);
+            let due = event_due(cuts, last_event, t_now);
+            let setup = if due && index.may_change(since, t_now) {
+                sweep.checks += 1;
+                let s = cuts.setup_at(mesh, t_now)?;
+                (!same_setup(model.cut.as_ref(), s.as_ref())).then_some(s)
+            } else {
+                None
+            };
+            unchecked_since = (!due).then_some(since);
             sweep.check_seconds += t.elapsed().as_secs_f64();
             sweep
                 .series
