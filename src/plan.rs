@@ -117,11 +117,18 @@ impl Plan {
         );
         // A blade in a dynamic scene cuts while it runs: the set-up, the
         // element data and the pattern are made again at its cut events.
-        let progressive = dynamic.is_some()
-            && scene
-                .cuts
+        let blades: Vec<&crate::scene::CutSpec> = scene
+            .cuts
+            .iter()
+            .filter(|c| matches!(c.geometry, crate::scene::CutGeometry::Blade { .. }))
+            .collect();
+        let progressive = dynamic.is_some() && !blades.is_empty();
+        // A blade's tip front (the default) moves inside its elements: its
+        // DOFs change meaning at each event.
+        let tip_blade = progressive
+            && blades
                 .iter()
-                .any(|c| matches!(c.geometry, crate::scene::CutGeometry::Blade { .. }));
+                .any(|c| c.front != Some(crate::scene::FrontMode::Extend));
         // Blending elements ramped where `Blending::for_cut` says so (no case today).
         let ramped = scene.cuts.iter().any(|c| {
             crate::cut::Blending::for_cut(c.options().front, c.tip_radius, model.mesh.kind)
@@ -163,12 +170,7 @@ impl Plan {
         // Tip functions: the model's, or those a blade's tip front will hold
         // while its edge is inside the body (its models are built as it
         // runs; the plan says what the run does from its start).
-        let holds_tip = model.cut.as_ref().is_some_and(|c| c.n_tip > 0)
-            || (progressive
-                && scene.cuts.iter().any(|c| {
-                    matches!(c.geometry, crate::scene::CutGeometry::Blade { .. })
-                        && c.front != Some(crate::scene::FrontMode::Extend)
-                }));
+        let holds_tip = model.cut.as_ref().is_some_and(|c| c.n_tip > 0) || tip_blade;
         match dynamic.map(|o| o.mass) {
             Some(MassKind::Lumped) if model.mesh.kind == crate::mesh::ElementKind::Tet10 => add(
                 "mass (lumped, eq. 81-82)",
@@ -285,26 +287,14 @@ impl Plan {
             ),
         }
         if let (true, Some(o)) = (progressive, dynamic) {
-            // A blade's tip front (the default) moves inside its elements:
-            // its DOFs change meaning at each event.
-            let tip_blade = scene.cuts.iter().any(|c| {
-                matches!(c.geometry, crate::scene::CutGeometry::Blade { .. })
-                    && c.front != Some(crate::scene::FrontMode::Extend)
-            });
             // Blades giving `event_travel` take an event only once their
             // edge has moved that far (every blade must, for fewer events).
-            let blades: Vec<Option<f64>> = scene
-                .cuts
-                .iter()
-                .filter(|c| matches!(c.geometry, crate::scene::CutGeometry::Blade { .. }))
-                .map(|c| c.event_travel)
-                .collect();
-            let lagging: Option<Vec<f64>> = blades.iter().copied().collect();
+            let lagging: Option<Vec<f64>> = blades.iter().map(|c| c.event_travel).collect();
             add(
                 "cut events",
                 true,
                 &match lagging {
-                    Some(reach) if !reach.is_empty() => format!(
+                    Some(reach) => format!(
                         "once a blade's edge has moved its event_travel ({} m) since the last event, or passed its end: the modelled cut lags the blade by up to that",
                         reach.iter().map(|r| format!("{r}")).collect::<Vec<_>>().join(", ")
                     ),
