@@ -176,7 +176,7 @@ impl Plan {
                 "mass (lumped, eq. 81-82)",
                 true,
                 &format!(
-                    "dynamic scene; Tet10: HRZ (cut elements: per cell, balanced to the element's node masses); a part that floats free takes its lumped mass times g as its gravity load (none on tip functions: their lumped mass is diagonal) and falls with g, held parts keep the consistent load ({})",
+                    "dynamic scene; Tet10: HRZ (cut elements: per side of the cut, balanced to the element's node masses); a part that floats free takes its lumped mass times g as its gravity load (none on tip functions: their lumped mass is diagonal) and falls with g, held parts keep the consistent load ({})",
                     floating()
                 ),
             ),

@@ -72,8 +72,9 @@ fn a_static_blade_takes_the_completed_sweep_and_equals_the_patch() {
 fn cut_events_keep_both_energies_and_refactorise_only_there() {
     let g = Vector3::new(-9.81, 0.0, 0.0);
     use xfem_cut::dynamics::{EventSolve, DEFAULT_EVENT_SOLVE};
-    // Tet4, and Tet10 with its (default) lumped mass: HRZ per cell, balanced
-    // to the uncut element's node masses (`mass::lump_element_mass`; per-cell
+    // Tet4, and Tet10 with its (default) lumped mass: HRZ per side of the
+    // cut, balanced to the uncut element's node masses
+    // (`mass::lump_element_mass`; per-cell
     // HRZ alone changed the kinetic energy by 1.1e-4 at an event here).
     for (mesh, formulation, event_solve) in [
         (bar([3, 3, 6]), Formulation::Linear, EventSolve::Refactorise),
