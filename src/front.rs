@@ -555,6 +555,35 @@ pub fn front_gap(ls: &[[f64; 2]; 4]) -> f64 {
     gap
 }
 
+/// The point of a cell's level-set image (its vertices' (φ, ψ), the cell
+/// linear in them) nearest the front, the origin of the (φ, ψ) plane, with
+/// its distance [`front_gap`]: the origin itself where the front passes
+/// through the cell.
+pub fn front_nearest(ls: &[[f64; 2]; 4]) -> (f64, [f64; 2]) {
+    if front_gap(ls) == 0.0 {
+        return (0.0, [0.0, 0.0]);
+    }
+    let mut best = (f64::INFINITY, [0.0, 0.0]);
+    for i in 0..4 {
+        for j in i + 1..4 {
+            let (a, b) = (ls[i], ls[j]);
+            let d = [b[0] - a[0], b[1] - a[1]];
+            let len2 = d[0] * d[0] + d[1] * d[1];
+            let t = if len2 > 0.0 {
+                (-(a[0] * d[0] + a[1] * d[1]) / len2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let p = [a[0] + t * d[0], a[1] + t * d[1]];
+            let dist = p[0].hypot(p[1]);
+            if dist < best.0 {
+                best = (dist, p);
+            }
+        }
+    }
+    best
+}
+
 /// The eight children of a tet by edge midpoints (Bey's red refinement;
 /// the inner octahedron split along the diagonal m02–m13), with their
 /// vertices' values of any field linear over the tet.
