@@ -525,6 +525,14 @@ pub fn cell_rule(v: &[Point3<f64>; 4], on_front: [bool; 4], n: usize) -> Vec<Phy
 /// the origin to the convex hull of the vertex images in the (φ, ψ) plane
 /// (0 when the front passes through the cell).
 pub fn front_gap(ls: &[[f64; 2]; 4]) -> f64 {
+    front_nearest(ls).0
+}
+
+/// The point of a cell's level-set image (the convex hull of its vertices'
+/// (φ, ψ)) nearest the front, the origin of the (φ, ψ) plane, with its
+/// distance [`front_gap`]: the origin itself where the front passes
+/// through the cell.
+pub fn front_nearest(ls: &[[f64; 2]; 4]) -> (f64, [f64; 2]) {
     let cross = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| {
         (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
     };
@@ -535,35 +543,10 @@ pub fn front_gap(ls: &[[f64; 2]; 4]) -> f64 {
         let has_neg = s1 < 0.0 || s2 < 0.0 || s3 < 0.0;
         let has_pos = s1 > 0.0 || s2 > 0.0 || s3 > 0.0;
         if !(has_neg && has_pos) && cross(a, b, c) != 0.0 {
-            return 0.0;
+            return (0.0, o);
         }
     }
-    let mut gap = f64::INFINITY;
-    for i in 0..4 {
-        for j in i + 1..4 {
-            let (a, b) = (ls[i], ls[j]);
-            let d = [b[0] - a[0], b[1] - a[1]];
-            let len2 = d[0] * d[0] + d[1] * d[1];
-            let t = if len2 > 0.0 {
-                (-(a[0] * d[0] + a[1] * d[1]) / len2).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            gap = gap.min((a[0] + t * d[0]).hypot(a[1] + t * d[1]));
-        }
-    }
-    gap
-}
-
-/// The point of a cell's level-set image (its vertices' (φ, ψ), the cell
-/// linear in them) nearest the front, the origin of the (φ, ψ) plane, with
-/// its distance [`front_gap`]: the origin itself where the front passes
-/// through the cell.
-pub fn front_nearest(ls: &[[f64; 2]; 4]) -> (f64, [f64; 2]) {
-    if front_gap(ls) == 0.0 {
-        return (0.0, [0.0, 0.0]);
-    }
-    let mut best = (f64::INFINITY, [0.0, 0.0]);
+    let mut best = (f64::INFINITY, o);
     for i in 0..4 {
         for j in i + 1..4 {
             let (a, b) = (ls[i], ls[j]);

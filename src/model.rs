@@ -3996,124 +3996,28 @@ mod tests {
         assert_eq!(changed_entries(elements.into_iter(), 200), expected);
     }
 
-    /// A front on an element's face (the seed's: x = 0.015 is a node plane
-    /// of its structured meshes) passes through the element's cell along
-    /// none of its edges. ∫ 1/r over such elements (r the distance to the
-    /// front, the singularity of a tip stiffness) with [`ElementShapes::cell_rule`]
-    /// against the cell split by φ = 0 and ψ = 0 with collapsed rules of
-    /// order 12 (red-refined three times towards the front off it). Before
-    /// the split, the cell took one red refinement and the degree-5 rule:
-    /// 2.9e-2 relative error on Tet4 (112 points); now 9.6e-5 (432 points),
-    /// Tet10 4.9e-6.
-    #[test]
-    fn a_front_across_a_cell_face_is_integrated_as_a_front_edge() {
-        use crate::cut::{setup_cut, split_front, CutInput, PlanarPatch, DEFAULT_SNAP};
+    /// ∫ 1/r (r the distance to the front, the singularity of a tip
+    /// stiffness) over the elements that `select` picks by their vertices'
+    /// (φ, ψ), in a 2 × 2 × 2 box of [0, 1]³ (Tet4 and Tet10) cut by
+    /// `patch`: [`ElementShapes::cell_rule`]'s against `reference(vertices,
+    /// (φ, ψ), 1/r)`, within `bound` relative; at least one element a mesh.
+    fn inverse_distance_within(
+        patch: &crate::cut::PlanarPatch,
+        select: impl Fn(&[[f64; 2]; 4]) -> bool,
+        reference: impl Fn(&[Point3<f64>; 4], &[[f64; 2]; 4], &dyn Fn(&Point3<f64>) -> f64) -> f64,
+        bound: f64,
+    ) {
+        use crate::cut::{setup_cut, CutInput, DEFAULT_SNAP};
         use crate::element::barycentric_gradients;
-        // Box [0, 1]³, 2 divisions: x = 0.5 a node plane, z = 0.3 not one.
-        let patch = PlanarPatch {
-            origin: Point3::new(-0.5, -0.5, 0.3),
-            u: Vector3::new(0.0, 2.0, 0.0),
-            v: Vector3::new(1.0, 0.0, 0.0),
-        };
         let tet4 = crate::mesh::box_mesh(Point3::origin(), Point3::new(1.0, 1.0, 1.0), [2, 2, 2]);
         for mesh in [tet4.clone(), tet4.to_tet10()] {
-            let cut = setup_cut(&mesh, &[CutInput::tip(&patch, DEFAULT_SNAP, None)]).unwrap();
-            let mut checked = 0;
-            for e in 0..mesh.n_elements() {
-                let verts = mesh.vertex_points(e);
-                let (f, g) = cut.vertex_levels(&mesh, e);
-                let touches_face = g.iter().all(|&v| v >= -1e-12)
-                    && g.iter().filter(|&&v| v.abs() <= 1e-12).count() == 3;
-                let crossed = f.iter().any(|&v| v > 0.0) && f.iter().any(|&v| v < 0.0);
-                if !(touches_face && crossed) {
-                    continue;
-                }
-                let dl = barycentric_gradients(&verts).unwrap();
-                let shapes =
-                    ElementShapes::new(&mesh, &cut, e, &dl, Vec::new()).expect("tip functions");
-                let inv_r = |x: &Point3<f64>| {
-                    let l = crate::mesh::barycentric(&verts, x).unwrap();
-                    1.0 / dot4(&l, &f).hypot(dot4(&l, &g))
-                };
-                let rule = shapes.cell_rule(&verts);
-                let got: f64 = rule.iter().map(|q| q.weight * inv_r(&q.x)).sum();
-                let tol = 1e-9;
-                let exact: f64 = split_front(&verts, &f, &g, tol)
-                    .iter()
-                    .map(|piece| {
-                        let on_front = piece.vertices.map(|x| {
-                            let l = crate::mesh::barycentric(&verts, &x).unwrap();
-                            dot4(&l, &f).abs() <= tol && dot4(&l, &g).abs() <= tol
-                        });
-                        let mut points = Vec::new();
-                        if on_front.iter().any(|&b| b) {
-                            points = front::cell_rule(&piece.vertices, on_front, 12);
-                        } else {
-                            // Off the front: refined three times towards it.
-                            let ls = piece.vertices.map(|x| {
-                                let l = crate::mesh::barycentric(&verts, &x).unwrap();
-                                [dot4(&l, &f), dot4(&l, &g)]
-                            });
-                            let leaf =
-                                |c: &[Point3<f64>; 4], out: &mut Vec<front::PhysicalPoint>| {
-                                    out.extend(front::cell_rule(c, [false; 4], 8))
-                                };
-                            front::near_front_rule(
-                                &piece.vertices,
-                                &ls,
-                                3,
-                                0.5,
-                                &leaf,
-                                &mut points,
-                            );
-                        }
-                        points.iter().map(|q| q.weight * inv_r(&q.x)).sum::<f64>()
-                    })
-                    .sum();
-                let err = (got - exact).abs() / exact;
-                println!(
-                    "{:?} element {e}: {} points, relative error {err:.1e}",
-                    mesh.kind,
-                    rule.len()
-                );
-                assert!(err < 1e-3, "element {e}: {got} against {exact} ({err:e})");
-                checked += 1;
-            }
-            assert!(checked > 0, "no element has the front on a face");
-        }
-    }
-
-    /// A cut on a node layer: the snap lifts the layer's nodes off it, so
-    /// the front runs just beside the faces of the elements on the layer
-    /// (a gap of about 1e-4 of their size). ∫ 1/r over those elements with
-    /// [`ElementShapes::cell_rule`] against the element red-refined towards
-    /// the front nine times, Duffy rules of order 6 on the pieces (within
-    /// 1e-5 of eleven times). Before the split, one red refinement: 3.9e-3
-    /// relative error (Tet4); now ≤ 1.0e-4 (Tet4), ≤ 1.4e-5 (Tet10).
-    #[test]
-    fn a_front_just_beside_a_face_is_integrated_as_a_front_edge() {
-        use crate::cut::{setup_cut, CutInput, PlanarPatch, DEFAULT_SNAP};
-        use crate::element::barycentric_gradients;
-        // Box [0, 1]³, 2 divisions: z = 0.5 a node layer, x = 0.25 not a node plane.
-        let patch = PlanarPatch {
-            origin: Point3::new(-0.5, -0.5, 0.5),
-            u: Vector3::new(0.0, 2.0, 0.0),
-            v: Vector3::new(0.75, 0.0, 0.0),
-        };
-        let tet4 = crate::mesh::box_mesh(Point3::origin(), Point3::new(1.0, 1.0, 1.0), [2, 2, 2]);
-        for mesh in [tet4.clone(), tet4.to_tet10()] {
-            let cut = setup_cut(&mesh, &[CutInput::tip(&patch, DEFAULT_SNAP, None)]).unwrap();
+            let cut = setup_cut(&mesh, &[CutInput::tip(patch, DEFAULT_SNAP, None)]).unwrap();
             let mut checked = 0;
             for e in 0..mesh.n_elements() {
                 let verts = mesh.vertex_points(e);
                 let (f, g) = cut.vertex_levels(&mesh, e);
                 let ls: [[f64; 2]; 4] = std::array::from_fn(|k| [f[k], g[k]]);
-                let diam = (0..4)
-                    .flat_map(|a| (a + 1..4).map(move |b| (a, b)))
-                    .map(|(a, b)| (ls[a][0] - ls[b][0]).hypot(ls[a][1] - ls[b][1]))
-                    .fold(0.0, f64::max);
-                let gap = front::front_gap(&ls);
-                if !(gap > 1e-9 && gap <= NEAR_TOUCH * diam) {
+                if !select(&ls) {
                     continue;
                 }
                 let dl = barycentric_gradients(&verts).unwrap();
@@ -4126,24 +4030,109 @@ mod tests {
                 };
                 let rule = shapes.cell_rule(&verts);
                 let got: f64 = rule.iter().map(|q| q.weight * inv_r(&q.x)).sum();
+                let exact = reference(&verts, &ls, &inv_r);
+                let err = (got - exact).abs() / exact;
+                println!(
+                    "{:?} element {e}: gap {:.1e}, {} points, relative error {err:.1e}",
+                    mesh.kind,
+                    front::front_gap(&ls),
+                    rule.len()
+                );
+                assert!(err < bound, "element {e}: {got} against {exact} ({err:e})");
+                checked += 1;
+            }
+            assert!(checked > 0, "{:?}: no element selected", mesh.kind);
+        }
+    }
+
+    /// A front on an element's face (the seed's: x = 0.015 is a node plane
+    /// of its structured meshes) passes through the element's cell along
+    /// none of its edges. ∫ 1/r over such elements against the cell split
+    /// by φ = 0 and ψ = 0 with collapsed rules of order 12 (red-refined
+    /// three times towards the front off it). Before the split, the cell
+    /// took one red refinement and the degree-5 rule: 2.9e-2 relative error
+    /// on Tet4 (112 points); now 9.6e-5 (432 points), Tet10 4.9e-6.
+    #[test]
+    fn a_front_across_a_cell_face_is_integrated_as_a_front_edge() {
+        // x = 0.5 a node plane, z = 0.3 not one.
+        let patch = crate::cut::PlanarPatch {
+            origin: Point3::new(-0.5, -0.5, 0.3),
+            u: Vector3::new(0.0, 2.0, 0.0),
+            v: Vector3::new(1.0, 0.0, 0.0),
+        };
+        let on_a_face = |ls: &[[f64; 2]; 4]| {
+            ls.iter().all(|l| l[1] >= -1e-12)
+                && ls.iter().filter(|l| l[1].abs() <= 1e-12).count() == 3
+                && ls.iter().any(|l| l[0] > 0.0)
+                && ls.iter().any(|l| l[0] < 0.0)
+        };
+        let split = |verts: &[Point3<f64>; 4],
+                     ls: &[[f64; 2]; 4],
+                     f: &dyn Fn(&Point3<f64>) -> f64| {
+            let tol = 1e-9;
+            let level = |x: &Point3<f64>| {
+                let l = crate::mesh::barycentric(verts, x).unwrap();
+                [0, 1].map(|k| (0..4).map(|v| l[v] * ls[v][k]).sum::<f64>())
+            };
+            let (phi, psi) = (ls.map(|l| l[0]), ls.map(|l| l[1]));
+            crate::cut::split_front(verts, &phi, &psi, tol)
+                .iter()
+                .map(|piece| {
+                    let on_front = piece.vertices.map(|x| {
+                        let [a, b] = level(&x);
+                        a.abs() <= tol && b.abs() <= tol
+                    });
+                    let mut points = Vec::new();
+                    if on_front.iter().any(|&b| b) {
+                        points = front::cell_rule(&piece.vertices, on_front, 12);
+                    } else {
+                        // Off the front: refined three times towards it.
+                        let leaf = |c: &[Point3<f64>; 4], out: &mut Vec<front::PhysicalPoint>| {
+                            out.extend(front::cell_rule(c, [false; 4], 8))
+                        };
+                        let ls = piece.vertices.map(|x| level(&x));
+                        front::near_front_rule(&piece.vertices, &ls, 3, 0.5, &leaf, &mut points);
+                    }
+                    points.iter().map(|q| q.weight * f(&q.x)).sum::<f64>()
+                })
+                .sum()
+        };
+        inverse_distance_within(&patch, on_a_face, split, 1e-3);
+    }
+
+    /// A cut on a node layer: the snap lifts the layer's nodes off it, so
+    /// the front runs just beside the faces of the elements on the layer
+    /// (a gap of about 1e-4 of their size). ∫ 1/r over those elements
+    /// against the element red-refined towards the front nine times, Duffy
+    /// rules of order 6 on the pieces (within 1e-5 of eleven times). Before
+    /// the split, one red refinement: 3.9e-3 relative error (Tet4); now
+    /// ≤ 1.0e-4 (Tet4), ≤ 1.4e-5 (Tet10).
+    #[test]
+    fn a_front_just_beside_a_face_is_integrated_as_a_front_edge() {
+        // z = 0.5 a node layer, x = 0.25 not a node plane.
+        let patch = crate::cut::PlanarPatch {
+            origin: Point3::new(-0.5, -0.5, 0.5),
+            u: Vector3::new(0.0, 2.0, 0.0),
+            v: Vector3::new(0.75, 0.0, 0.0),
+        };
+        let beside = |ls: &[[f64; 2]; 4]| {
+            let diam = (0..4)
+                .flat_map(|a| (a + 1..4).map(move |b| (a, b)))
+                .map(|(a, b)| (ls[a][0] - ls[b][0]).hypot(ls[a][1] - ls[b][1]))
+                .fold(0.0, f64::max);
+            let gap = front::front_gap(ls);
+            gap > 1e-9 && gap <= NEAR_TOUCH * diam
+        };
+        let refined =
+            |verts: &[Point3<f64>; 4], ls: &[[f64; 2]; 4], f: &dyn Fn(&Point3<f64>) -> f64| {
                 let leaf = |c: &[Point3<f64>; 4], out: &mut Vec<front::PhysicalPoint>| {
                     out.extend(front::cell_rule(c, [false; 4], 6))
                 };
                 let mut fine = Vec::new();
-                front::near_front_rule(&verts, &ls, 9, 0.5, &leaf, &mut fine);
-                let exact: f64 = fine.iter().map(|q| q.weight * inv_r(&q.x)).sum();
-                let err = (got - exact).abs() / exact;
-                println!(
-                    "{:?} element {e}: gap {:.1e} of its size, {} points, relative error {err:.1e}",
-                    mesh.kind,
-                    gap / diam,
-                    rule.len()
-                );
-                assert!(err < 1e-3, "element {e}: {got} against {exact} ({err:e})");
-                checked += 1;
-            }
-            assert!(checked > 0, "no element beside the lifted layer");
-        }
+                front::near_front_rule(verts, ls, 9, 0.5, &leaf, &mut fine);
+                fine.iter().map(|q| q.weight * f(&q.x)).sum()
+            };
+        inverse_distance_within(&patch, beside, refined, 1e-3);
     }
 
     /// [`ramp_fixes`]: the ring nodes' branch functions outside
