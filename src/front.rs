@@ -567,6 +567,15 @@ pub fn front_nearest(ls: &[[f64; 2]; 4]) -> (f64, [f64; 2]) {
     best
 }
 
+/// The diameter of a cell's level-set image: the largest distance between
+/// its vertices' (φ, ψ).
+pub fn level_diameter(ls: &[[f64; 2]; 4]) -> f64 {
+    (0..4)
+        .flat_map(|a| (a + 1..4).map(move |b| (a, b)))
+        .map(|(a, b)| (ls[a][0] - ls[b][0]).hypot(ls[a][1] - ls[b][1]))
+        .fold(0.0, f64::max)
+}
+
 /// The eight children of a tet by edge midpoints (Bey's red refinement;
 /// the inner octahedron split along the diagonal m02–m13), with their
 /// vertices' values of any field linear over the tet.
@@ -616,10 +625,7 @@ pub fn near_front_rule(
     leaf: &LeafRule,
     out: &mut Vec<PhysicalPoint>,
 ) {
-    let diam = (0..4)
-        .flat_map(|a| (a + 1..4).map(move |b| (a, b)))
-        .map(|(a, b)| (ls[a][0] - ls[b][0]).hypot(ls[a][1] - ls[b][1]))
-        .fold(0.0, f64::max);
+    let diam = level_diameter(ls);
     // (A gap within 1e-9 of the threshold counts as on it: on structured
     // meshes it often is, exactly, and round-off, moved with the scene,
     // chose the rule: 2e-4 in a tip element's mean gradient, 1e-6 at the

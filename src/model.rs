@@ -1068,12 +1068,9 @@ impl ElementShapes {
             })
         });
         // The front through the cell off its edges and vertices, or within
-        // NEAR_TOUCH of it: split by the level sets' lines through the
+        // NEAR_TOUCH of it: split by the level sets' planes through the
         // cell's point nearest the front, which the pieces collapse onto.
-        let diam = (0..4)
-            .flat_map(|a| (a + 1..4).map(move |b| (a, b)))
-            .map(|(a, b)| (ls[a][0] - ls[b][0]).hypot(ls[a][1] - ls[b][1]))
-            .fold(0.0, f64::max);
+        let diam = front::level_diameter(&ls);
         let (gap, star) = front::front_nearest(&ls);
         if target.is_none()
             && diam.is_finite()
@@ -4116,12 +4113,8 @@ mod tests {
             v: Vector3::new(0.75, 0.0, 0.0),
         };
         let beside = |ls: &[[f64; 2]; 4]| {
-            let diam = (0..4)
-                .flat_map(|a| (a + 1..4).map(move |b| (a, b)))
-                .map(|(a, b)| (ls[a][0] - ls[b][0]).hypot(ls[a][1] - ls[b][1]))
-                .fold(0.0, f64::max);
             let gap = front::front_gap(ls);
-            gap > 1e-9 && gap <= NEAR_TOUCH * diam
+            gap > 1e-9 && gap <= NEAR_TOUCH * front::level_diameter(ls)
         };
         let refined =
             |verts: &[Point3<f64>; 4], ls: &[[f64; 2]; 4], f: &dyn Fn(&Point3<f64>) -> f64| {
