@@ -4164,7 +4164,7 @@ mod tests {
     /// times (over 64 such cells of six random fronts, four times is within
     /// 2.2e-5 of it, three times 1.6e-4). Before [`front::polar_rule`], one
     /// red refinement and the degree-5 rule: up to 2.6e-2 relative error
-    /// over those 64 cells, 1.7e-3 here; now ≤ 4.6e-5 there, 1.0e-4 here.
+    /// over those 64 cells, 1.7e-3 here; now ≤ 4.3e-5 there, 1.0e-4 here.
     #[test]
     fn a_front_near_a_cell_is_integrated_in_polar_coordinates() {
         let patch = crate::cut::PlanarPatch {
