@@ -536,8 +536,8 @@ pub fn cell_rule(v: &[Point3<f64>; 4], on_front: [bool; 4], n: usize) -> Vec<Phy
 /// the fibre. Exact for polynomials of degree min(2n − 3, 2n_z − 1) (the
 /// Duffy Jacobian and the fibre's length take one each). ∫ 1/r over cells
 /// 1e-3 … 0.1 of their size from the front: ≤ 4.3e-5 relative error with
-/// n = 4, where one red refinement and the
-/// degree-5 rule erred by up to 2.6e-2 (test
+/// n = 4, where one red refinement and the degree-5 rule erred by up to
+/// 2.6e-2 (test
 /// `model::tests::a_front_near_a_cell_is_integrated_in_polar_coordinates`).
 /// None when the level sets' gradients are parallel over the cell, or a
 /// degenerate image lost part of the cell (the weights' sum checked
@@ -891,7 +891,9 @@ mod tests {
     /// cells the front passes at 1e-3 … 0.3 of their size, among them one
     /// with an edge along the front (two vertices of one image, three on a
     /// line: a tip element's cell beside a cut on a node layer, whose
-    /// image the rule lost before its orientations were snapped).
+    /// image the rule lost before its orientations were snapped); level
+    /// sets with parallel gradients over a cell (its image a segment) get
+    /// None, and the cell its red refinement.
     #[test]
     fn the_polar_rule_is_exact_for_polynomials_of_its_degree() {
         let mut seed = 7u64;
@@ -935,6 +937,8 @@ mod tests {
                 [0.0008336161670007061, -2.6020852139652106e-18],
             ],
         ));
+        let flat = [[0.2, 0.1], [0.4, 0.2], [0.3, 0.15], [0.5, 0.25]];
+        assert!(polar_rule(&cases[0].0, &flat, 4, 3).is_none());
         for (cell, ls) in cases {
             let c = Vector3::new(unit(), unit(), unit());
             let f = |x: &Point3<f64>| (1.0 + c.dot(&x.coords)).powi(5);
