@@ -561,6 +561,10 @@ fn dofs_added_per_front_length_against_tip_radius() {
 /// 3.8e-5 / 9.5e-5 (the model's rule), 1.1e-5 / 1.9e-5 / 5.9e-5 (refined
 /// twice), 1.2e-6 / 8.1e-7 / 2.1e-6 (three times, 6³): the errors still
 /// fall with the residual, at 0.7–5.4 times it, so the multiple is 6. The
+/// model's rule later gave 4.7e-5 / 3.8e-5 / 9.5e-5; with cells at 1e-3 …
+/// 0.1 of their size from the front in polar coordinates
+/// (`front::polar_rule`) 2.8e-5 / 1.9e-5 / 6.4e-5 (Tet10 with R = 0.2:
+/// 1.2e-4 / 4.1e-5 / 1.4e-4 → 1.2e-4 / 2.3e-5 / 6.9e-5). The
 /// strain is compared in the energy norm: a tip DOF's strain grows like
 /// r^(-1/2) at the front, so a pointwise bound would measure how close the
 /// rule's points come to it.
