@@ -448,6 +448,21 @@ pub struct PhysicalPoint {
     pub weight: f64,
 }
 
+/// The 14-point degree-5 rule ([`crate::quadrature::DEGREE5`]) on a tet.
+pub fn degree5_rule(cell: &[Point3<f64>; 4]) -> impl Iterator<Item = PhysicalPoint> + '_ {
+    let v = crate::mesh::tet_volume(cell).abs();
+    crate::quadrature::DEGREE5
+        .iter()
+        .map(move |q| PhysicalPoint {
+            x: Point3::from(
+                cell.iter()
+                    .zip(q.bary)
+                    .fold(Vector3::zeros(), |s, (p, l)| s + p.coords * l),
+            ),
+            weight: q.weight * v,
+        })
+}
+
 /// Rule on the tet (p, q, c, d) collapsed onto its edge pq:
 /// x(t, s, ρ) = (1−ρ)((1−t)p + tq) + ρ((1−s)c + sd), Jacobian
 /// ρ(1−ρ)·6V, tensor Gauss with `n` points per direction and ρ = σ² (see
@@ -885,7 +900,6 @@ pub fn near_front_rule(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::tet_volume;
 
     /// [`polar_rule`] (n = 4, n_z = 3) integrates quintics exactly over
     /// cells the front passes at 1e-3 … 0.3 of their size, among them one
@@ -942,17 +956,7 @@ mod tests {
         for (cell, ls) in cases {
             let c = Vector3::new(unit(), unit(), unit());
             let f = |x: &Point3<f64>| (1.0 + c.dot(&x.coords)).powi(5);
-            let volume = crate::mesh::tet_volume(&cell).abs();
-            let exact: f64 = crate::quadrature::DEGREE5
-                .iter()
-                .map(|q| {
-                    let x = cell
-                        .iter()
-                        .zip(q.bary)
-                        .fold(Vector3::zeros(), |s, (p, l)| s + p.coords * l);
-                    q.weight * volume * f(&Point3::from(x))
-                })
-                .sum();
+            let exact: f64 = degree5_rule(&cell).map(|q| q.weight * f(&q.x)).sum();
             let rule = polar_rule(&cell, &ls, 4, 3).expect("level sets not parallel");
             let got: f64 = rule.iter().map(|q| q.weight * f(&q.x)).sum();
             let scale: f64 = rule.iter().map(|q| (q.weight * f(&q.x)).abs()).sum();
@@ -1117,17 +1121,7 @@ mod tests {
         assert!(errors[3] < 1e-6, "{errors:?}");
         // The standard degree-5 rule on the same tet: far less accurate.
         let p = [o, ex, ey, ez];
-        let v = tet_volume(&p);
-        let std: f64 = crate::quadrature::DEGREE5
-            .iter()
-            .map(|q| {
-                let x = p
-                    .iter()
-                    .zip(q.bary)
-                    .fold(Vector3::zeros(), |s, (a, l)| s + a.coords * l);
-                q.weight * v * f(&Point3::from(x))
-            })
-            .sum();
+        let std: f64 = degree5_rule(&p).map(|q| q.weight * f(&q.x)).sum();
         let std_err = (std - exact).abs() / exact;
         println!("degree-5 Walkington rule, same integral: {std_err:.2e}");
         assert!(std_err > 100.0 * errors[3]);

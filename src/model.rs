@@ -635,16 +635,7 @@ impl Model {
                     .into_iter()
                     .map(|q| (q.x, q.weight, side)),
             ),
-            _ => {
-                let v = tet_volume(cell).abs();
-                out.extend(quadrature::DEGREE5.iter().map(|q| {
-                    let x = cell
-                        .iter()
-                        .zip(q.bary)
-                        .fold(Vector3::zeros(), |s, (p, l)| s + p.coords * l);
-                    (Point3::from(x), q.weight * v, side)
-                }));
-            }
+            _ => out.extend(front::degree5_rule(cell).map(|q| (q.x, q.weight, side))),
         };
         match self.cut.as_ref().map(|c| &c.elements[e]) {
             Some(ElementCut::Cut { sub_tets, .. }) => {
@@ -1122,17 +1113,7 @@ impl ElementShapes {
         // linear field 6.3e-4 → 4.9e-5, for 1.9× the points of tip elements).
         let mut out = Vec::new();
         let degree5 = |c: &[Point3<f64>; 4], out: &mut Vec<front::PhysicalPoint>| {
-            let v = tet_volume(c).abs();
-            out.extend(quadrature::DEGREE5.iter().map(|q| {
-                front::PhysicalPoint {
-                    x: Point3::from(
-                        c.iter()
-                            .zip(q.bary)
-                            .fold(Vector3::zeros(), |s, (p, l)| s + p.coords * l),
-                    ),
-                    weight: q.weight * v,
-                }
-            }))
+            out.extend(front::degree5_rule(c))
         };
         front::near_front_rule(
             cell,
