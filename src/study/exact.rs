@@ -780,7 +780,7 @@ pub fn study_variants() -> Vec<Variant> {
     use FrontMode::{Extend, Tip};
     let (t4, t10) = ((Some(2.0), Some(1.0)), (Some(3.0), Some(2.0)));
     #[rustfmt::skip]
-    let table: [Entry; 11] = [
+    let table: [Entry; 12] = [
         (Case::ThroughCut, "FEM pre-cut", Tet4, Extend, None, &[4, 6, 8, 12, 16], t4),
         (Case::ThroughCut, "FEM pre-cut", Tet10, Extend, None, &[2, 3, 4, 6, 8], t10),
         (Case::ThroughCut, "xfem heaviside", Tet4, Extend, None, &[4, 6, 8, 12, 16], t4),
@@ -790,6 +790,7 @@ pub fn study_variants() -> Vec<Variant> {
         (Case::NearFront, "geometric tip R=0.2", Tet4, Tip, Some(0.2), &[6, 8, 12, 16, 24], t4),
         (Case::NearFront, "geometric tip R=0.2", Tet10, Tip, Some(0.2), &[2, 3, 4, 6, 8, 12], t10),
         (Case::NearFront, "geometric tip R=0.2 jittered", Tet4, Tip, Some(0.2), &[6, 8, 12, 16, 24], t4),
+        (Case::NearFront, "geometric tip R=0.2 jittered", Tet10, Tip, Some(0.2), &[3, 4, 6, 8, 12], t10),
         (Case::NearFront, "topological tip", Tet4, Tip, None, &[6, 8, 12, 16], (Some(1.0), Some(0.5))),
         (Case::NearFront, "extend", Tet4, Extend, None, &[6, 8, 12, 16], (None, None)),
     ];
