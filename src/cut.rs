@@ -413,8 +413,8 @@ pub enum Blending {
     /// R = Σ_{i∈I} λ_i over the tip nodes I, for k in I and the other
     /// vertices of blending elements (the ring: they get tip blocks too, of
     /// which [`crate::model::ring_free_branches`] are free: all four make
-    /// the tip functions linearly dependent). The default where a Tet4
-    /// case gives `tip_radius` ([`Blending::for_cut`]).
+    /// the tip functions linearly dependent). What a Tet4 case takes where
+    /// its `tip_radius` spans [`RAMP_SPAN`] elements ([`Blending::for_cut`]).
     ///
     /// Behind the front, the jump in cut blending elements comes R from the
     /// tip functions and 1 − R from the Heaviside enrichment, ramped by
@@ -440,40 +440,70 @@ pub enum Blending {
     /// 1.1–1.3× lower than [`Blending::None`] at n = 3 … 8, at 1.02–1.15×
     /// the DOFs (`blending_measure_tet10`).
     Ramp,
+    /// The ramp where `tip_radius` spans [`RAMP_SPAN`] elements or more,
+    /// none elsewhere ([`Blending::resolve`], [`Blending::for_cut`]).
+    Auto,
 }
 
+/// A Tet4 geometric tip front ramps its blending elements where
+/// `tip_radius` ≥ this many times the mesh's size h
+/// ([`TetMesh::median_edge_length`]; [`Blending::Auto`]).
+pub const RAMP_SPAN: f64 = 2.5;
+
 impl Blending {
-    /// What a case's cut takes (`run`, `converge`, a blade's events): no
-    /// ramp. The ramp ([`Blending::Ramp`], an option of the library) is
-    /// better on the exact near-front field but not on the seed's beam.
+    /// What a case's cut takes (`run`, `converge`, a blade's events):
+    /// [`Blending::Auto`] for a Tet4 tip front with `tip_radius`, else no ramp.
     ///
-    /// Exact field, Tet4, random oblique fronts on jittered meshes, R = 0.2,
-    /// n = 20 → 28: L2 / energy orders 1.85–1.91 / 0.94–0.98 with the ramp,
-    /// 1.56–1.79 / 0.80–0.89 without, L2 errors 2.4–2.8× lower at 1.1× the
-    /// DOFs (`tests/front.rs random_fronts_orders_measure`).
+    /// Why R against h. The ramp takes the tip functions' full weight from
+    /// the blending layer, one element wide, so it pays where R spans a
+    /// few elements and can cost where it spans one or two. The seed's beam
+    /// (Tet4, unstructured meshes L0 … L4, `gravity`, `stretch_face`,
+    /// `bend_face`, `stretch`; R = 1 … 4 of gmsh's characteristic length,
+    /// 120 runs with and without the ramp, `examples/error_map.rs … geo`),
+    /// judged by the gap of the total potential energy Π to the FEniCSx
+    /// reference's (half the energy-norm error squared): with R ≥ 2.5 h (h
+    /// the median edge length) the ramp narrowed the gap in all 36 runs (to
+    /// 0.74 … 0.998 of it, median 0.93; `bend_face` 0.97 … 0.998) at 1.07 …
+    /// 1.11× the DOFs; below 2.5 h it widened it in 16 of 84 runs, by up to
+    /// 1.26× (`stretch_face` L1, R = 1.5 h). L2 against the references
+    /// moved 0.76 … 1.21× (`bend_face` and `stretch` up to 1.17 and 1.21,
+    /// as with no ramp their bulk errors cancel in L2). The exact
+    /// near-front field (R = 0.2, n = 16 … 32, R/h 2.5 … 5.1): energy
+    /// order 0.97 with the ramp against 0.84 without, errors halved
+    /// (`xfem-cut converge --exact`). Tet10 takes no ramp: there it needs
+    /// all four branch functions on its ring, whose dependence only one
+    /// node's gauge pins (conditioning 1e8–1e9,
+    /// [`crate::model::ring_free_branches`]), and the beam's references
+    /// cannot judge it: `gravity` Tet10 at L2 and L3 ends below the
+    /// reference's Π with and without the ramp (by up to 1.8e-3 of it).
     ///
-    /// The seed's beam against the FEniCSx references (Tet4, R = 5 mm, L4;
-    /// `make report` of 2026-12-06 with the ramp as the Tet4 default):
-    /// L2 9.13 → 7.66 % (gravity) and 7.97 → 6.27 % (stretch_face), but
-    /// 5.56 → 6.75 % (stretch) and 4.73 → 6.03 % (bend_face), their opening
-    /// errors 2–3× larger; stretch_face's error rose from L0 to L1 and
-    /// gravity's L0 had a higher potential energy than FEM on the pre-cut
-    /// mesh, so the checks of issue 11 on the beam
-    /// (`study::report::tests`) failed. All four branch functions on its
-    /// ring instead of F₀, F₁ gave the same (stretch L4: 6.79 %). Why, is
-    /// not found. Its cost: the ring's tip blocks (at 1k Tet4 with R under
-    /// an element, 84 tip nodes against 21: `examples/step_profile.rs 3 6
-    /// 10 tip radius=0.006 [ramp]`, 1.5–2× the step on a loaded machine).
-    ///
-    /// On Tet10 the ring needs all four branch functions (F₃ held at zero on
-    /// it, the exact field's energy error was 1.03–1.47× *above* no ramp at
-    /// n = 3 … 8), and with all four only one node's gauge pins their
-    /// dependence (conditioning 1e8–1e9: [`crate::model::ring_free_branches`]).
-    /// On the topological tip the ramp lowers the L2 error 1.5× at n = 24
-    /// (3.05e-3 against 4.52e-3) but makes 4× the tip nodes (365 against
-    /// 92) (`blending_measure`).
-    pub fn for_cut(_front: FrontMode, _tip_radius: Option<f64>, _kind: ElementKind) -> Blending {
-        Blending::None
+    /// Earlier measurements: with R = 5 mm (≤ 1.1 h, where Auto takes no
+    /// ramp) the ramp raised `stretch`'s and `bend_face`'s L2 errors against
+    /// the references at L4 (5.56 → 6.75 %, 4.73 → 6.03 %) and failed the
+    /// checks of issue 11 on the beam (`study::report::tests`). Its cost:
+    /// the ring's tip blocks (at 1k Tet4 with R under an element, 84 tip
+    /// nodes against 21: `examples/step_profile.rs 3 6 10 tip radius=0.006
+    /// [ramp]`, 1.5–2× the step on a loaded machine). On the topological
+    /// tip the ramp lowers the L2 error 1.5× at n = 24 (3.05e-3 against
+    /// 4.52e-3) but makes 4× the tip nodes (365 against 92)
+    /// (`blending_measure`).
+    pub fn for_cut(front: FrontMode, tip_radius: Option<f64>, kind: ElementKind) -> Blending {
+        match (front, tip_radius, kind) {
+            (FrontMode::Tip, Some(_), ElementKind::Tet4) => Blending::Auto,
+            _ => Blending::None,
+        }
+    }
+
+    /// What the set-up does on `mesh`: [`Blending::Auto`] becomes the ramp
+    /// where `tip_radius` ≥ [`RAMP_SPAN`] h, else none.
+    pub fn resolve(self, mesh: &TetMesh, tip_radius: Option<f64>) -> Blending {
+        match (self, tip_radius) {
+            (Blending::Auto, Some(r)) if r >= RAMP_SPAN * mesh.median_edge_length() => {
+                Blending::Ramp
+            }
+            (Blending::Auto, _) => Blending::None,
+            (b, _) => b,
+        }
     }
 }
 
@@ -1311,7 +1341,7 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
                 }
             }
         }
-        if input.blending == Blending::Ramp {
+        if input.blending.resolve(mesh, input.tip_radius) == Blending::Ramp {
             // I* = I ∪ the vertices of blending elements; those not in I keep
             // their Heaviside enrichment (their own R is 0 at the node).
             let mut blend = vec![false; n_nodes];
@@ -1576,6 +1606,64 @@ mod tests {
     use super::*;
     use crate::mesh::box_mesh;
     use proptest::prelude::*;
+
+    #[test]
+    fn a_case_ramps_tet4_blending_elements_where_tip_radius_spans_a_few_of_them() {
+        use crate::study::exact::unit_box;
+        // The structured box's median edge is 1.264 / n (6 tets a cube):
+        // R = 0.2 spans 1.9 of them at n = 12, 2.54 at n = 16.
+        let h = unit_box(16, ElementKind::Tet4, 0.0).median_edge_length();
+        assert!((h * 16.0 - (3.0 + 2.0 * 2f64.sqrt() + 3f64.sqrt()) / 6.0).abs() < 1e-12);
+        for jitter in [0.0, 0.2] {
+            for (n, want) in [
+                (12, Blending::None),
+                (16, Blending::Ramp),
+                (32, Blending::Ramp),
+            ] {
+                let mesh = unit_box(n, ElementKind::Tet4, jitter);
+                let auto = Blending::for_cut(FrontMode::Tip, Some(0.2), ElementKind::Tet4);
+                assert_eq!(auto, Blending::Auto);
+                assert_eq!(
+                    auto.resolve(&mesh, Some(0.2)),
+                    want,
+                    "n {n} jitter {jitter}"
+                );
+            }
+        }
+        // Tet10, the topological tip and the extended front take no ramp;
+        // a blending given outright is kept.
+        let mesh = unit_box(16, ElementKind::Tet4, 0.0);
+        for (front, radius, kind) in [
+            (FrontMode::Tip, Some(0.2), ElementKind::Tet10),
+            (FrontMode::Tip, None, ElementKind::Tet4),
+            (FrontMode::Extend, Some(0.2), ElementKind::Tet4),
+        ] {
+            let b = Blending::for_cut(front, radius, kind);
+            assert_eq!(
+                b.resolve(&mesh, radius),
+                Blending::None,
+                "{front:?} {radius:?} {kind:?}"
+            );
+        }
+        assert_eq!(Blending::Ramp.resolve(&mesh, Some(0.01)), Blending::Ramp);
+        assert_eq!(Blending::None.resolve(&mesh, Some(0.9)), Blending::None);
+        // The set-up follows it: the ramp's nodes are marked at n = 16, none at n = 12.
+        let patch = PlanarPatch {
+            origin: Point3::new(-1.0, -1.0, 0.47),
+            u: Vector3::new(1.53, 0.0, 0.1),
+            v: Vector3::new(0.0, 3.0, 0.0),
+        };
+        for (n, ramped) in [(12, false), (16, true)] {
+            let mesh = unit_box(n, ElementKind::Tet4, 0.0);
+            let input = CutInput {
+                blending: Blending::for_cut(FrontMode::Tip, Some(0.2), ElementKind::Tet4),
+                ..CutInput::tip(&patch, DEFAULT_SNAP, Some(0.2))
+            };
+            let cut = setup_cut(&mesh, &[input]).unwrap();
+            assert!(cut.n_tip() > 0);
+            assert_eq!(cut.ramp.iter().any(|&r| r), ramped, "n {n}");
+        }
+    }
 
     fn tet() -> [Point3<f64>; 4] {
         [

@@ -135,6 +135,31 @@ impl TetMesh {
         h
     }
 
+    /// The median over the elements of their mean edge length (vertex to
+    /// vertex): the size h of a mesh meant as uniform. gmsh's meshes of the
+    /// seed's beam at characteristic lengths 12 … 3.5 mm measure 0.91 …
+    /// 1.30 of it; the structured box, 1.26 / n. NaN for a mesh without
+    /// elements.
+    pub fn median_edge_length(&self) -> f64 {
+        let mut sizes: Vec<f64> = (0..self.n_elements())
+            .map(|e| {
+                let p = self.vertex_points(e);
+                let mut sum = 0.0;
+                for i in 0..4 {
+                    for j in i + 1..4 {
+                        sum += (p[i] - p[j]).norm();
+                    }
+                }
+                sum / 6.0
+            })
+            .collect();
+        if sizes.is_empty() {
+            return f64::NAN;
+        }
+        let mid = sizes.len() / 2;
+        *sizes.select_nth_unstable_by(mid, f64::total_cmp).1
+    }
+
     /// Reorders the vertices of negatively oriented elements (swaps vertices
     /// 1 and 2, and the mid-nodes that go with them) so every volume is positive.
     pub fn orient_positively(&mut self) {

@@ -129,14 +129,19 @@ impl Plan {
             && blades
                 .iter()
                 .any(|c| c.front != Some(crate::scene::FrontMode::Extend));
-        // Blending elements ramped where `Blending::for_cut` says so (no case today).
+        // Blending elements ramped where `Blending::for_cut` says so on this
+        // mesh (a Tet4 `tip_radius` of `cut::RAMP_SPAN` elements or more).
         let ramped = scene.cuts.iter().any(|c| {
-            crate::cut::Blending::for_cut(c.options().front, c.tip_radius, model.mesh.kind)
+            let o = c.options();
+            crate::cut::Blending::for_cut(o.front, o.tip_radius, model.mesh.kind)
+                .resolve(&model.mesh, o.tip_radius)
                 == crate::cut::Blending::Ramp
         });
         let ramp = if ramped {
             format!(
-                "; tip_radius: blending elements ramped (corrected X-FEM), the ring's tip nodes carry branch functions {:?} of 0-3",
+                "; tip_radius >= {} h (h = {:.3e} m, the median edge): blending elements ramped (corrected X-FEM), the ring's tip nodes carry branch functions {:?} of 0-3",
+                crate::cut::RAMP_SPAN,
+                model.mesh.median_edge_length(),
                 crate::model::ring_free_branches(model.mesh.kind)
             )
         } else {

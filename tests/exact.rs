@@ -156,13 +156,12 @@ fn through_cut_jump_converges_at_the_smooth_rates() {
 fn near_front_geometric_tip_tet4_converges_at_the_rates_of_issue_11() {
     // Issue 11: geometric tip enrichment, Tet4, L2 order ≥ 1.8 and energy ≥ 0.85
     // (theory 2 / 1); the variant the report's code-verification section runs,
-    // a case's default (no ramp), over n = 16 → 24 (1.80 / 0.87). The report
-    // runs it to n = 32 (a minute a level, too slow here): over 24 → 32 it
-    // is 1.84 / 0.84, the energy order falling under 0.85 (the blending
-    // elements' error), where the ramp of corrected X-FEM, a library option,
-    // gives 1.90 / 0.97 on the jittered mesh (the report's "ramp jittered"
-    // variant; over 16 → 24 `tests/front.rs`
-    // `ramp_blending_keeps_the_rates_of_issue_11_on_a_jittered_mesh_tet4`).
+    // a case's default, over n = 16 → 24. There R = 0.2 spans 2.5 and 3.8
+    // median edges, so the default ramps the blending elements
+    // (`cut::RAMP_SPAN`). Standard X-FEM (no ramp) gave 1.80 / 0.87 here and
+    // 1.84 / 0.84 over 24 → 32 (the blending elements' error): the energy
+    // order ≥ 0.9 asserted below fails without the ramp. The report runs it
+    // to n = 32 (a minute a level, too slow here).
     let mut v = study_variants()
         .into_iter()
         .find(|v| {
@@ -178,7 +177,7 @@ fn near_front_geometric_tip_tet4_converges_at_the_rates_of_issue_11() {
     let refs: Vec<&Row> = rows.iter().collect();
     let (l2, en) = last_orders(&refs).unwrap();
     println!("near front geometric tip tet4: orders L2 {l2:.2}, energy {en:.2}");
-    assert!(l2 >= 1.8 && en >= 0.85, "{l2} {en}");
+    assert!(l2 >= 1.8 && en >= 0.9, "{l2} {en}");
 }
 
 #[test]
@@ -188,8 +187,10 @@ fn near_front_geometric_tip_tet10_converges_faster_and_beats_tet4_at_fewer_dofs(
     // measured L2 / energy orders 2.72 / 1.66 and 2.92 / 1.79 (theory 3 / 2;
     // structured 2.03 / 0.93 from n = 4 to 6, which is before the asymptotic
     // range: R = 0.2 is about one element there). The structured n = 8
-    // (12006 DOFs) against the Tet4 variant at n = 16 (16650 DOFs): L2
-    // 6.6e-4 against 4.0e-3, energy 2.5e-2 against 1.4e-1.
+    // (12006 DOFs) against the Tet4 variant at n = 16 (19260 DOFs, its
+    // blending elements ramped as a case's default ramps them there): L2
+    // 6.6e-4 against 1.9e-3, energy 2.5e-2 against 6.2e-2 (standard X-FEM
+    // Tet4: 4.0e-3 and 1.4e-1 at 16650 DOFs).
     let geometric = |kind| {
         study_variants()
             .into_iter()
@@ -225,7 +226,7 @@ fn near_front_geometric_tip_tet10_converges_faster_and_beats_tet4_at_fewer_dofs(
     let t4 = rows.iter().find(|r| r.element == "tet4").unwrap();
     assert!(coarse.dofs < t4.dofs, "{} {}", coarse.dofs, t4.dofs);
     assert!(
-        coarse.l2 < t4.l2 / 3.0 && coarse.energy < t4.energy / 3.0,
+        coarse.l2 < t4.l2 / 2.0 && coarse.energy < t4.energy / 2.0,
         "Tet10 {:.3e} {:.3e}, Tet4 {:.3e} {:.3e}",
         coarse.l2,
         coarse.energy,
