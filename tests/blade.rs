@@ -1002,14 +1002,15 @@ fn a_tip_front_follows_the_blade_and_the_cut_is_closed_ahead_of_it() {
     tip_front_follows_the_blade(None);
 }
 
-/// The same with a geometric tip front (`tip_radius`, the ramp of corrected
-/// X-FEM in its blending elements): as the front moves, nodes join and
+/// The same with a geometric tip front (`tip_radius` 1.1, 2.6 median edges
+/// of the bar, so the ramp of corrected X-FEM in its blending elements,
+/// `cut::RAMP_SPAN`): as the front moves, nodes join and
 /// leave the ramp's ring, whose held branch functions the model update
 /// holds and frees (`Model::update_cut`, checked against a model built
 /// whole in `incremental_update_equals_a_full_build_at_every_event`).
 #[test]
 fn a_geometric_tip_front_follows_the_blade_and_the_cut_is_closed_ahead_of_it() {
-    tip_front_follows_the_blade(Some(0.4));
+    tip_front_follows_the_blade(Some(1.1));
 }
 
 fn tip_front_follows_the_blade(tip_radius: Option<f64>) {
@@ -1040,7 +1041,9 @@ fn tip_front_follows_the_blade(tip_radius: Option<f64>) {
     let edge_y = |t: f64| -0.5 + 2.0 * (t - start) / (end - start);
     let (mut worst_ahead, mut behind_max): (f64, f64) = (0.0, 0.0);
     let mut tip_steps = 0;
+    let mut ramp_seen = false;
     let run = run_dynamic(&cuts, &mesh, &build, opts, |_, m, nm| {
+        ramp_seen |= m.cut.as_ref().is_some_and(|c| c.ramp.iter().any(|&r| r));
         let s = &nm.state;
         assert!(s.d.iter().all(|x| x.is_finite()));
         let y = edge_y(s.time);
@@ -1064,6 +1067,9 @@ fn tip_front_follows_the_blade(tip_radius: Option<f64>) {
         .fold(0.0, f64::max);
     println!("tip front: {sw}; {tip_steps} steps with tip nodes checked: opening ahead ≤ {worst_ahead:e}, behind up to {behind_max:e}; largest (kinetic + strain) change at an event {jump:.2e} (tip blocks and tip → Heaviside DOFs projected by least squares)");
     assert!(tip_steps >= 3, "{tip_steps}");
+    let ramped =
+        tip_radius.is_some_and(|r| r >= xfem_cut::cut::RAMP_SPAN * mesh.median_edge_length());
+    assert_eq!(ramp_seen, ramped);
     assert!(
         behind_max > 0.0 && worst_ahead <= 1e-10 * behind_max,
         "{worst_ahead:e} vs {behind_max:e}"
@@ -1185,11 +1191,14 @@ fn incremental_update_equals_a_full_build_at_every_event() {
     // The cut plane z = 0.1 inside elements (a front along a node layer is no tip front).
     for (tet10, div) in [(false, [3, 6, 11]), (true, [2, 3, 7])] {
         let mesh = beam_mesh(div, tet10);
-        // (front, tip_radius: the ramp's ring held and freed as it moves)
+        // (front, tip_radius: 0.012 under an element; 0.05 beyond 2.5 median
+        // edges of the Tet4 mesh, which ramps its blending elements, the
+        // ramp's ring held and freed as the front moves)
         for (front, radius) in [
             (FrontMode::Extend, None),
             (FrontMode::Tip, None),
             (FrontMode::Tip, Some(0.012)),
+            (FrontMode::Tip, Some(0.05)),
         ] {
             let mut cuts = seed_blade(0.0, 1.0);
             cuts.front = front;
@@ -1201,6 +1210,10 @@ fn incremental_update_equals_a_full_build_at_every_event() {
             for formulation in [Formulation::Linear, Formulation::Corotational] {
                 let build = |cut| seed_beam(mesh.clone(), formulation, cut).unwrap();
                 let mut inc = build(None);
+                let ramped = radius.is_some_and(|r| {
+                    !tet10 && r >= xfem_cut::cut::RAMP_SPAN * mesh.median_edge_length()
+                });
+                let mut ramp_seen = false;
                 let mut worst = [0.0f64; 5];
                 let (mut events, mut changed, mut dropped) = (0, 0, 0);
                 for k in 1..=10 {
@@ -1208,6 +1221,7 @@ fn incremental_update_equals_a_full_build_at_every_event() {
                     if xfem_cut::blade::same_setup(inc.cut.as_ref(), s.as_ref()) {
                         continue;
                     }
+                    ramp_seen |= s.as_ref().is_some_and(|c| c.ramp.iter().any(|&r| r));
                     let (next, stats) = inc.update_cut(s.clone()).unwrap();
                     let full = build(s);
                     let diff = model_difference(&next, &full);
@@ -1220,10 +1234,11 @@ fn incremental_update_equals_a_full_build_at_every_event() {
                     inc = next;
                 }
                 println!(
-                    "tet10 {tet10} {front:?} R {radius:?} {formulation:?}: {events} events, {changed} element blocks recomputed of {} per build, {dropped} equations dropped; worst K {:.1e}, f_int {:.1e}, load {:.1e}, lumped {:.1e}, consistent mass {:.1e}",
+                    "tet10 {tet10} {front:?} R {radius:?} (ramp {ramped}) {formulation:?}: {events} events, {changed} element blocks recomputed of {} per build, {dropped} equations dropped; worst K {:.1e}, f_int {:.1e}, load {:.1e}, lumped {:.1e}, consistent mass {:.1e}",
                     mesh.n_elements() * events, worst[0], worst[1], worst[2], worst[3], worst[4]
                 );
                 assert!(events >= 3, "{events} events");
+                assert_eq!(ramp_seen, ramped, "ramp");
                 // Most blocks are kept (a tip front changes every element it
                 // crosses at every event; a radius, every element it reaches).
                 assert!(

@@ -208,6 +208,9 @@ impl Random {
         match self.front {
             "extend" => cut += "front = \"extend\"\n",
             "radius" => cut += &format!("tip_radius = {:e}\n", 1.5 * self.size.x / 3.0),
+            // 3.6 of the x divisions: 1.7 … 3.2 median edges, so some take
+            // the ramp of the blending elements (`cut::RAMP_SPAN`).
+            "wide" => cut += &format!("tip_radius = {:e}\n", 1.2 * self.size.x),
             _ => {}
         }
         let (z0, z1) = (offset.z, offset.z + self.size.z);
@@ -314,6 +317,82 @@ fn random_oblique_cuts_solve_and_move_and_read_as_stl_unchanged() {
             scene.label()
         );
     }
+}
+
+#[test]
+fn random_oblique_cuts_with_a_wide_tip_radius_take_the_ramp_and_stay_invariant() {
+    // The Tet4 scenes of `random_oblique_cuts_solve_and_move_and_read_as_stl_unchanged`
+    // with `tip_radius` 1.2 × the box's x side: where that is 2.5 median
+    // edges or more, a case's default ramps the blending elements
+    // (corrected X-FEM, the ring's nodes tip-enriched too). Each scene must
+    // solve, give the same probes moved far from the origin, as an STL,
+    // ending just outside the body, and scaled by 1e-3 (the ramp's choice
+    // is relative to the mesh). Measured: R = 1.70 … 3.15 h, 8 of 16
+    // ramped (94–107 nodes in I and its ring); moved ≤ 1.1e-12, STL ≤
+    // 1.4e-13, just outside ≤ 1.6e-13, scaled ≤ 8.4e-13.
+    let dir = tempfile::tempdir().unwrap();
+    let mut rng = Lcg(20261202);
+    let mut ramped = 0;
+    for k in 0..24 {
+        let mut scene = Random::new(&mut rng, k);
+        if scene.tet10 {
+            continue;
+        }
+        scene.front = "wide";
+        let text = scene.toml(Vector3::zeros(), None);
+        let parsed = Scene::parse(&text, &dir.path().join("random.toml")).unwrap();
+        let result = solve_scene(&parsed, 0, None, false).unwrap_or_else(|e| panic!("{e}\n{text}"));
+        let cut = result.model.cut.as_ref().unwrap();
+        let ramp = cut.ramp.iter().filter(|&&r| r).count();
+        let radius = 1.2 * scene.size.x / result.model.mesh.median_edge_length();
+        assert_eq!(
+            ramp > 0,
+            radius >= xfem_cut::cut::RAMP_SPAN,
+            "{k}: R = {radius} h"
+        );
+        ramped += usize::from(ramp > 0);
+        let here = probe_values(&parsed, &result).unwrap();
+        let offset = Vector3::new(0.7, -1.3, 2.1);
+        let moved = probes(&scene.toml(offset, None), dir.path());
+        let c = scene.corners.map(|p| p + offset);
+        std::fs::write(
+            dir.path().join("patch.stl"),
+            ascii_stl(&c, &[[0, 1, 2], [0, 2, 3]]),
+        )
+        .unwrap();
+        let stl = probes(&scene.toml(offset, Some("patch.stl")), dir.path());
+        let tight = probes(
+            &scene.toml_with(&scene.tight, Vector3::zeros(), None),
+            dir.path(),
+        );
+        let s = 1e-3;
+        let scaled: Vec<Vector3<f64>> =
+            probes(&scene.scaled(s).toml(Vector3::zeros(), None), dir.path())
+                .iter()
+                .map(|u| u / s)
+                .collect();
+        let d = [
+            largest_difference(&here, &moved),
+            largest_difference(&moved, &stl),
+            largest_difference(&here, &tight),
+            largest_difference(&here, &scaled),
+        ];
+        println!(
+            "{k:2} {} (R = {radius:.2} h, {ramp} ramp nodes): moved {:.1e}, as STL {:.1e}, ending just outside {:.1e}, scaled {:.1e}",
+            scene.label(),
+            d[0],
+            d[1],
+            d[2],
+            d[3]
+        );
+        assert!(d[0] <= 1e-9 && d[3] <= 1e-9, "{k} {}: {d:?}", scene.label());
+        assert!(
+            d[1] <= 1e-10 && d[2] <= 1e-10,
+            "{k} {}: {d:?}",
+            scene.label()
+        );
+    }
+    assert!(ramped >= 4, "only {ramped} scenes took the ramp");
 }
 
 #[test]
