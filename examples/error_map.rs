@@ -8,10 +8,17 @@
 //! error squared, so of two runs on one body the lower Π is the more
 //! accurate in energy (`extend` lengthens the cut, a different body).
 //!
-//! `cargo run --release --example error_map -- cases/bend_face.toml tip 3 [tet10]`
-//! (needs `make refs`: the graded reference and the meshes L0…L4).
+//! `cargo run --release --example error_map -- cases/bend_face.toml tip 3 [tet10] [R=0.02] [ramp=on|off]`
+//! (needs `make refs`: the graded reference and the meshes L0…L4). `R=`
+//! sets `geo`'s radius (m); `ramp=on|off` forces the blending elements'
+//! treatment (the ramp of corrected X-FEM, or none) where a case takes
+//! `cut::Blending::for_cut` (the ramp where a Tet4 R spans 2.5 median edges).
+//! What `cut::RAMP_SPAN` was chosen from: each of `gravity`, `stretch_face`,
+//! `bend_face`, `stretch` at L0…L4 with R = 1, 1.5, 2, 2.5, 3, 4 × the
+//! level's characteristic length (12, 8, 6, 4.5, 3.5 mm), ramp on and off.
 use nalgebra::{Point3, Vector3};
 use std::path::Path;
+use xfem_cut::cut::Blending;
 use xfem_cut::locate::Locator;
 use xfem_cut::mesh::ElementKind;
 use xfem_cut::quadrature::DEGREE5;
@@ -26,14 +33,27 @@ const SLABS: usize = 10;
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let [case, variant, level, ..] = args.as_slice() else {
-        eprintln!("usage: error_map CASE fem|tip|extend|geo LEVEL [tet10]");
+        eprintln!("usage: error_map CASE fem|tip|extend|geo LEVEL [tet10] [R=m] [ramp=on|off]");
         std::process::exit(2);
     };
     let level: usize = level.parse().expect("level");
     let mut scene = Scene::load(Path::new(case)).expect("case");
-    if args.get(3).is_some_and(|s| s == "tet10") {
+    let flags = &args[3..];
+    if flags.iter().any(|s| s == "tet10") {
         scene.element = ElementKind::Tet10;
     }
+    let radius = flags
+        .iter()
+        .find_map(|s| s.strip_prefix("R="))
+        .map_or(GEOMETRIC_TIP_RADIUS, |r| r.parse().expect("R=<metres>"));
+    let blending = flags
+        .iter()
+        .find_map(|s| s.strip_prefix("ramp="))
+        .map(|r| match r {
+            "on" => Blending::Ramp,
+            "off" => Blending::None,
+            _ => panic!("ramp=on|off"),
+        });
     let (family, reference) = reference_of(&scene.name).expect("no fine reference: make refs");
     let family = if variant == "fem" {
         scene.cuts.clear();
@@ -44,7 +64,8 @@ fn main() {
                 "extend" => FrontMode::Extend,
                 _ => FrontMode::Tip,
             });
-            c.tip_radius = (variant == "geo").then_some(GEOMETRIC_TIP_RADIUS);
+            c.tip_radius = (variant == "geo").then_some(radius);
+            c.blending = blending;
         }
         "beam_uncut".to_string()
     };

@@ -512,6 +512,18 @@ pub struct CutOptions {
     pub front: FrontMode,
     /// `Some(R)`: tip-enrich every node within R of the front (geometric).
     pub tip_radius: Option<f64>,
+    /// The blending elements' treatment; `None`: a case's default
+    /// ([`crate::cut::Blending::for_cut`]). No case key sets it: studies
+    /// and examples compare the treatments with it.
+    pub blending: Option<crate::cut::Blending>,
+}
+
+impl CutOptions {
+    /// What the set-up takes on a mesh of `kind`.
+    pub fn blending(&self, kind: crate::mesh::ElementKind) -> crate::cut::Blending {
+        self.blending
+            .unwrap_or_else(|| crate::cut::Blending::for_cut(self.front, self.tip_radius, kind))
+    }
 }
 
 impl CutSet {
@@ -560,6 +572,7 @@ impl CutSet {
             snap: self.snap,
             front: self.front,
             tip_radius: None,
+            blending: None,
         })
     }
 
@@ -640,7 +653,7 @@ impl CutSet {
                         snap: o.snap,
                         front: o.front,
                         tip_radius: o.tip_radius,
-                        blending: crate::cut::Blending::for_cut(o.front, o.tip_radius, mesh.kind),
+                        blending: o.blending(mesh.kind),
                     }
                 })
                 .collect();

@@ -133,7 +133,7 @@ impl Plan {
         // mesh (a Tet4 `tip_radius` of `cut::RAMP_SPAN` elements or more).
         let ramped = scene.cuts.iter().any(|c| {
             let o = c.options();
-            crate::cut::Blending::for_cut(o.front, o.tip_radius, model.mesh.kind)
+            o.blending(model.mesh.kind)
                 .resolve(&model.mesh, o.tip_radius)
                 == crate::cut::Blending::Ramp
         });

@@ -171,6 +171,10 @@ pub struct CutSpec {
     /// `event_travel` (m, > 0; blades only): a cut event once the blade's
     /// edge has moved this far since the last one ([`crate::blade::event_due`]).
     pub event_travel: Option<f64>,
+    /// The blending elements' treatment; `None` (what a case file gives):
+    /// [`crate::cut::Blending::for_cut`]. Not a case key: examples set it to
+    /// compare the ramp with standard X-FEM (`examples/error_map.rs`).
+    pub blending: Option<crate::cut::Blending>,
 }
 
 #[derive(Debug, Clone)]

@@ -260,7 +260,7 @@ impl crate::scene::CutSpec {
             snap: o.snap,
             front: o.front,
             tip_radius: o.tip_radius,
-            blending: crate::cut::Blending::for_cut(o.front, o.tip_radius, kind),
+            blending: o.blending(kind),
         }
     }
 
@@ -274,6 +274,7 @@ impl crate::scene::CutSpec {
                 FrontMode::Extend => crate::cut::FrontMode::Extend,
             },
             tip_radius: self.tip_radius,
+            blending: self.blending,
         }
     }
 }

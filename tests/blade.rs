@@ -1028,6 +1028,7 @@ fn tip_front_follows_the_blade(tip_radius: Option<f64>) {
             snap: DEFAULT_SNAP,
             front,
             tip_radius,
+            blending: None,
         }],
     };
     let g = Vector3::new(-9.81, 0.0, 0.0);
@@ -1206,6 +1207,7 @@ fn incremental_update_equals_a_full_build_at_every_event() {
                 snap: cuts.snap,
                 front,
                 tip_radius: radius,
+                blending: None,
             }];
             for formulation in [Formulation::Linear, Formulation::Corotational] {
                 let build = |cut| seed_beam(mesh.clone(), formulation, cut).unwrap();

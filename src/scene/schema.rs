@@ -828,6 +828,7 @@ fn validate_cut(c: &Checker, k: &str, t: CutFile, base: &Path) -> Result<CutSpec
         front: t.front,
         tip_radius,
         event_travel,
+        blending: None,
     })
 }
 
