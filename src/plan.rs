@@ -130,19 +130,36 @@ impl Plan {
                 .iter()
                 .any(|c| c.front != Some(crate::scene::FrontMode::Extend));
         // Blending elements ramped where `Blending::for_cut` says so on this
-        // mesh (a Tet4 `tip_radius` of `cut::RAMP_SPAN` elements or more).
-        let ramped = scene.cuts.iter().any(|c| {
+        // mesh (a Tet4 `tip_radius` of `cut::RAMP_SPAN` elements or more);
+        // a radius under that says why not.
+        let resolved: Vec<crate::cut::Blending> = scene
+            .cuts
+            .iter()
+            .map(|c| {
+                let o = c.options();
+                o.blending(model.mesh.kind)
+                    .resolve(&model.mesh, o.tip_radius)
+            })
+            .collect();
+        let under_span = scene.cuts.iter().zip(&resolved).any(|(c, &b)| {
             let o = c.options();
-            o.blending(model.mesh.kind)
-                .resolve(&model.mesh, o.tip_radius)
-                == crate::cut::Blending::Ramp
+            o.blending.is_none()
+                && o.blending(model.mesh.kind) == crate::cut::Blending::Auto
+                && b == crate::cut::Blending::None
         });
-        let ramp = if ramped {
+        let h = || model.mesh.median_edge_length();
+        let ramp = if resolved.contains(&crate::cut::Blending::Ramp) {
             format!(
                 "; tip_radius >= {} h (h = {:.3e} m, the median edge): blending elements ramped (corrected X-FEM), the ring's tip nodes carry branch functions {:?} of 0-3",
                 crate::cut::RAMP_SPAN,
-                model.mesh.median_edge_length(),
+                h(),
                 crate::model::ring_free_branches(model.mesh.kind)
+            )
+        } else if under_span {
+            format!(
+                "; tip_radius < {} h (h = {:.3e} m, the median edge): blending elements not ramped (standard X-FEM)",
+                crate::cut::RAMP_SPAN,
+                h()
             )
         } else {
             String::new()

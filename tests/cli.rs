@@ -422,6 +422,19 @@ fn the_plan_shows_the_options_the_run_uses() {
             "projected together",
         ),
         (dynamic(""), "[run ] mass", "cut events"),
+        // A Tet4 tip_radius ramps the blending elements from 2.5 median
+        // edges on (`cut::RAMP_SPAN`; this mesh's: about 0.045 m).
+        (
+            with_cut(&format!("{PATCH}\ntip_radius = 0.01")),
+            "tip_radius < 2.5 h (h = ",
+            "blending elements ramped",
+        ),
+        (
+            with_cut(&format!("{PATCH}\ntip_radius = 0.2")),
+            "tip_radius >= 2.5 h (h = ",
+            "not ramped",
+        ),
+        (with_cut(PATCH), "the scene has [[cut]])", "tip_radius"),
         (blade(""), "[run ] cut events (at every step the cut grows)", "event_travel"),
         (
             blade("event_travel = 0.002\n"),
