@@ -21,8 +21,9 @@
 //! `-- 6 12 24 [tet10] [tip|extend] [radius=R [ramp]] [steps=N]` for one
 //! beam (`tip`: the seed's cut shortened to x = 0.0137, its front inside
 //! elements and tip-enriched, as in the `tip` group of benches/cut.rs,
-//! within R of the front with `radius=R`, its blending elements not ramped,
-//! as a case's, unless `ramp`; `extend`: the same cut extended to the faces
+//! within R of the front with `radius=R`, its blending elements not ramped
+//! unless `ramp` (a case ramps them where R ≥ 2.5 median edges,
+//! `cut::RAMP_SPAN`); `extend`: the same cut extended to the faces
 //! of its front elements, what that group compares it with).
 use nalgebra::{Point3, Vector3};
 use std::hint::black_box;

@@ -2092,8 +2092,9 @@ fn ramped_tet4_heaviside_functions_lump_their_ramp() {
 
 /// The stress suite's `front-near` bar (1 × 1 × 2, 4 × 4 × 8 hexes; here
 /// only the bottom clamped, gravity), its front at x = 0.5 + δ h inside the
-/// face z = 1.125 or the node line z = 1 + δ h, geometric R = 0.3, Tet4
-/// (where a case's `tip_radius` takes the ramp): the Jacobi-scaled
+/// face z = 1.125 or the node line z = 1 + δ h, geometric R = 0.3, Tet4,
+/// the ramp forced (a case takes it from R = 2.5 median edges on,
+/// `cut::RAMP_SPAN`, here 0.79): the Jacobi-scaled
 /// condition estimate with the ramp against the plain blending's.
 /// Measured: 1.06e4 / 8.84e3 (face), 1.76e4 / 1.85e4 and 1.39e4 / 1.20e4
 /// (node line, δ = 1e-3, 1e-9). With all four branch functions on the ring
