@@ -575,7 +575,9 @@ fn dofs_added_per_front_length_against_tip_radius() {
 /// model's rule later gave 4.7e-5 / 3.8e-5 / 9.5e-5; with cells at 1e-3 …
 /// 0.1 of their size from the front in polar coordinates
 /// (`front::polar_rule`) 2.8e-5 / 1.9e-5 / 6.4e-5 (Tet10 with R = 0.2:
-/// 1.2e-4 / 4.1e-5 / 1.4e-4 → 1.2e-4 / 2.3e-5 / 6.9e-5). The
+/// 1.2e-4 / 4.1e-5 / 1.4e-4 → 1.2e-4 / 2.3e-5 / 6.9e-5); Tet4 with R = 0.2
+/// and the ramp (what a case takes from R = 2.5 median edges on): 2.5e-5 /
+/// 3.5e-5 / 7.9e-5. The
 /// strain is compared in the energy norm: a tip DOF's strain grows like
 /// r^(-1/2) at the front, so a pointwise bound would measure how close the
 /// rule's points come to it.
@@ -610,6 +612,15 @@ fn patch_test_with_tip_nodes_present() {
             "Tet4 R = 0.2",
             ElementKind::Tet4,
             CutInput::tip(&patch, 1e-4, Some(0.2)),
+            1e-2,
+        ),
+        (
+            "Tet4 R = 0.2 ramp",
+            ElementKind::Tet4,
+            CutInput {
+                blending: Blending::Ramp,
+                ..CutInput::tip(&patch, 1e-4, Some(0.2))
+            },
             1e-2,
         ),
         (
