@@ -1805,15 +1805,28 @@ fn a_tip_front_beside_another_cut_evaluates_its_branch_functions_with_its_own_le
 /// F_k(x_i)), the worst node was 2.5e-5 of ½ g t² off it after 0.2 s (Tet4
 /// linear; Tet10's probes through `xfem-cut run` up to 4.6e-5); now 1.9e-11
 /// (Tet4 linear), 1.1e-12 (corotational), 4.0e-10 (Tet10), measured. The
-/// part above the slice floats too and falls as well.
+/// part above the slice floats too and falls as well. Also with a wider
+/// slice whose front's `tip_radius` takes the ramp (the ring's tip
+/// functions lumped the same way): 1.8e-11 (linear), 1.1e-11
+/// (corotational), 425 tip nodes.
 #[test]
 fn a_slice_holding_a_tip_front_falls_with_g_at_every_node() {
     let g = Vector3::new(3.0, 4.0, -9.81);
-    for (element, levels, formulation) in [
-        ("tet4", "[4, 8, 40]", "linear"),
-        ("tet4", "[4, 8, 40]", "corotational"),
-        ("tet10", "[2, 4, 40]", "linear"),
+    // (element, levels, formulation, wide): `wide` a slice of 0.05 … 0.15
+    // whose front takes tip_radius 0.022, 2.6 median edges, so the ramp
+    // (its ring tip-enriched too).
+    for (element, levels, formulation, wide) in [
+        ("tet4", "[4, 8, 40]", "linear", false),
+        ("tet4", "[4, 8, 40]", "corotational", false),
+        ("tet10", "[2, 4, 40]", "linear", false),
+        ("tet4", "[4, 8, 40]", "linear", true),
+        ("tet4", "[4, 8, 40]", "corotational", true),
     ] {
+        let (below, above, radius) = if wide {
+            (0.0501, 0.1501, "tip_radius = 0.022\n")
+        } else {
+            (0.0801, 0.1201, "")
+        };
         let text = format!(
             r#"name = "slice_with_a_front"
 [body]
@@ -1825,18 +1838,18 @@ young = 3.0e5
 poisson = 0.35
 density = 1070.0
 [[cut]]
-origin = [-0.01, -0.01, 0.0801]
+origin = [-0.01, -0.01, {below}]
 u = [0.05, 0.0, 0.0]
 v = [0.0, 0.08, 0.0]
 [[cut]]
-origin = [-0.01, -0.01, 0.1201]
+origin = [-0.01, -0.01, {above}]
 u = [0.05, 0.0, 0.0]
 v = [0.0, 0.08, 0.0]
 [[cut]]
 origin = [-0.01, 0.0301, 0.0913]
 u = [0.0263, 0.0, 0.0]
 v = [0.0, 0.0, 0.0174]
-[[fix]]
+{radius}[[fix]]
 min = [-inf, -inf, 0.0]
 max = [inf, inf, 0.0]
 [gravity]
@@ -1854,18 +1867,19 @@ steps = 20
         let r = xfem_cut::run::solve_scene(&scene, 0, None, false).unwrap();
         let c = r.model.cut.as_ref().unwrap();
         assert!(c.n_tip > 0, "{element}: the front is tip-enriched");
+        assert_eq!(c.ramp.iter().any(|&r| r), wide, "{element} wide {wide}");
         let want = g * (0.5 * 0.2f64.powi(2));
         let (mut worst, mut tips) = (0.0f64, 0);
         for (i, p) in r.model.mesh.nodes.iter().enumerate() {
             // Nodes of the slice and of the part above it, off the cuts' elements.
-            if !(0.086..=0.114).contains(&p.z) && p.z < 0.126 {
+            if !(below + 0.0059..=above - 0.0061).contains(&p.z) && p.z < above + 0.0059 {
                 continue;
             }
             let u = r.model.node_displacement(&r.d, i, 1);
             worst = worst.max((u - want).norm() / want.norm());
             tips += usize::from(c.tip[i].is_some());
         }
-        println!("{element} {formulation}: worst node {worst:e}, {tips} tip nodes among them");
+        println!("{element} {formulation} wide {wide}: worst node {worst:e}, {tips} tip nodes among them");
         assert!(tips > 0);
         assert!(worst <= 1e-9, "{element} {formulation}: {worst:e}");
     }
