@@ -84,16 +84,6 @@ struct Run {
     energy: f64,
 }
 
-fn solve_model(
-    div: usize,
-    kind: ElementKind,
-    jitter: f64,
-    front: FrontMode,
-    radius: Option<f64>,
-) -> (Run, Model, Vec<f64>) {
-    solve_blended(div, kind, jitter, front, radius, Blending::None)
-}
-
 fn solve_blended(
     div: usize,
     kind: ElementKind,
