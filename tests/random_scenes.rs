@@ -279,6 +279,25 @@ fn probes(text: &str, dir: &Path) -> Vec<Vector3<f64>> {
     probe_values(&scene, &result).unwrap()
 }
 
+type Probes = Vec<Vector3<f64>>;
+
+/// The scene's probes moved far from the origin, with its patch given as an
+/// STL (of the moved patch: two triangles, written at full precision), and
+/// with the patch ending just outside the body.
+fn moved_stl_tight(scene: &Random, dir: &Path) -> (Probes, Probes, Probes) {
+    let offset = Vector3::new(0.7, -1.3, 2.1);
+    let moved = probes(&scene.toml(offset, None), dir);
+    let c = scene.corners.map(|p| p + offset);
+    std::fs::write(
+        dir.join("patch.stl"),
+        ascii_stl(&c, &[[0, 1, 2], [0, 2, 3]]),
+    )
+    .unwrap();
+    let stl = probes(&scene.toml(offset, Some("patch.stl")), dir);
+    let tight = probes(&scene.toml_with(&scene.tight, Vector3::zeros(), None), dir);
+    (moved, stl, tight)
+}
+
 #[test]
 fn random_oblique_cuts_solve_and_move_and_read_as_stl_unchanged() {
     let dir = tempfile::tempdir().unwrap();
@@ -286,20 +305,7 @@ fn random_oblique_cuts_solve_and_move_and_read_as_stl_unchanged() {
     for k in 0..24 {
         let scene = Random::new(&mut rng, k);
         let here = probes(&scene.toml(Vector3::zeros(), None), dir.path());
-        let offset = Vector3::new(0.7, -1.3, 2.1);
-        let moved = probes(&scene.toml(offset, None), dir.path());
-        // The STL of the moved patch: two triangles, written at full precision.
-        let c = scene.corners.map(|p| p + offset);
-        std::fs::write(
-            dir.path().join("patch.stl"),
-            ascii_stl(&c, &[[0, 1, 2], [0, 2, 3]]),
-        )
-        .unwrap();
-        let stl = probes(&scene.toml(offset, Some("patch.stl")), dir.path());
-        let tight = probes(
-            &scene.toml_with(&scene.tight, Vector3::zeros(), None),
-            dir.path(),
-        );
+        let (moved, stl, tight) = moved_stl_tight(&scene, dir.path());
         let (d_moved, d_stl, d_tight) = (
             largest_difference(&here, &moved),
             largest_difference(&moved, &stl),
@@ -352,19 +358,7 @@ fn random_oblique_cuts_with_a_wide_tip_radius_take_the_ramp_and_stay_invariant()
         );
         ramped += usize::from(ramp > 0);
         let here = probe_values(&parsed, &result).unwrap();
-        let offset = Vector3::new(0.7, -1.3, 2.1);
-        let moved = probes(&scene.toml(offset, None), dir.path());
-        let c = scene.corners.map(|p| p + offset);
-        std::fs::write(
-            dir.path().join("patch.stl"),
-            ascii_stl(&c, &[[0, 1, 2], [0, 2, 3]]),
-        )
-        .unwrap();
-        let stl = probes(&scene.toml(offset, Some("patch.stl")), dir.path());
-        let tight = probes(
-            &scene.toml_with(&scene.tight, Vector3::zeros(), None),
-            dir.path(),
-        );
+        let (moved, stl, tight) = moved_stl_tight(&scene, dir.path());
         let s = 1e-3;
         let scaled: Vec<Vector3<f64>> =
             probes(&scene.scaled(s).toml(Vector3::zeros(), None), dir.path())
