@@ -45,12 +45,16 @@ EXACT_CSV := reports/data/exact.csv
 # A blade sweeping the seed's cut: step time against simulated time, events marked; the front
 # extended and tip-enriched, linear and corotational (seconds).
 SWEEP_CSV := reports/data/sweep_series.csv
+# What the ramp of corrected X-FEM buys on the beam against R / h (`cut::RAMP_SPAN`): 240 static
+# Tet4 solves against the references (about 10 minutes).
+RAMP_CASES := gravity stretch_face bend_face stretch
+RAMP_CSV := reports/data/ramp_span.csv
 
 # The main job: references, the convergence studies, the benches, the report. Untimed stages run
 # $(JOBS) at a time; the timed ones (the linear study, the sweep, the benches) alone after them.
 report: build
 	$(if $(wildcard refs/refs.mk),$(MAKE) refs)
-	$(MAKE) -j$(JOBS) $(CONVERGE_COROT_CSV) $(EXACT_CSV) $(STRESS_CSV)
+	$(MAKE) -j$(JOBS) $(CONVERGE_COROT_CSV) $(EXACT_CSV) $(STRESS_CSV) $(RAMP_CSV)
 	$(MAKE) $(CONVERGE_CSV) $(SWEEP_CSV) bench-report
 	$(if $(wildcard refs/refs.mk),$(MAKE) -j$(JOBS) pictures)
 	$(CARGO) run --release -- report
@@ -87,6 +91,9 @@ $(SWEEP_CSV): target/release/xfem-cut examples/sweep_series.rs
 	$(CARGO) run --release --example sweep_series -- corotational --out reports
 	$(CARGO) run --release --example sweep_series -- tip --out reports
 	$(CARGO) run --release --example sweep_series -- corotational tip --out reports
+
+$(RAMP_CSV): target/release/xfem-cut examples/error_map.rs $(foreach c,$(RAMP_CASES),cases/$(c).toml refs/out/$(c)/manifest.json)
+	$(CARGO) run --release --example error_map -- ramp-span --csv $@
 
 bench-report: build
 	$(CARGO) bench --bench step --bench cut --bench blade -- --warm-up-time 1 --measurement-time 3

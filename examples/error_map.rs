@@ -25,42 +25,40 @@ use xfem_cut::quadrature::DEGREE5;
 use xfem_cut::run::solve_scene;
 use xfem_cut::scene::{FrontMode, Scene};
 use xfem_cut::study::converge::{potential_energy, reference_of, GEOMETRIC_TIP_RADIUS};
+use xfem_cut::study::ramp::{write_csv, RampRow};
 use xfem_cut::study::reference::{out_dir, read_reference};
 use xfem_cut::study::verify::{side_of, Field};
 
 const SLABS: usize = 10;
 
-fn main() {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let [case, variant, level, ..] = args.as_slice() else {
-        eprintln!("usage: error_map CASE fem|tip|extend|geo LEVEL [tet10] [R=m] [ramp=on|off]");
-        std::process::exit(2);
-    };
-    let level: usize = level.parse().expect("level");
-    let mut scene = Scene::load(Path::new(case)).expect("case");
-    let flags = &args[3..];
-    if flags.iter().any(|s| s == "tet10") {
-        scene.element = ElementKind::Tet10;
-    }
-    let radius = flags
-        .iter()
-        .find_map(|s| s.strip_prefix("R="))
-        .map_or(GEOMETRIC_TIP_RADIUS, |r| r.parse().expect("R=<metres>"));
-    let blending = flags
-        .iter()
-        .find_map(|s| s.strip_prefix("ramp="))
-        .map(|r| match r {
-            "on" => Blending::Ramp,
-            "off" => Blending::None,
-            _ => panic!("ramp=on|off"),
-        });
+/// One run against its reference: what `main` prints and the grid records.
+struct Comparison {
+    dofs: usize,
+    median_edge: f64,
+    l2: f64,
+    energy: f64,
+    reference_energy: f64,
+    /// Per tenth of the body along z: its share of the error², the mean
+    /// u_ref − u_h and the mean u_ref.
+    slabs: Vec<(f64, Vector3<f64>, Vector3<f64>)>,
+    z_range: (f64, f64),
+}
+
+/// `scene` (its cuts set up as `variant` asks) at `level` against its fine reference.
+fn compare(
+    mut scene: Scene,
+    variant: &str,
+    level: usize,
+    radius: f64,
+    blending: Option<Blending>,
+) -> Comparison {
     let (family, reference) = reference_of(&scene.name).expect("no fine reference: make refs");
     let family = if variant == "fem" {
         scene.cuts.clear();
         family
     } else {
         for c in &mut scene.cuts {
-            c.front = Some(match variant.as_str() {
+            c.front = Some(match variant {
                 "extend" => FrontMode::Extend,
                 _ => FrontMode::Tip,
             });
@@ -119,20 +117,119 @@ fn main() {
             slabs[k].3 += u_ref * w;
         }
     }
+    Comparison {
+        dofs: model.n_free,
+        median_edge: model.mesh.median_edge_length(),
+        l2: (err2 / norm2).sqrt(),
+        energy,
+        reference_energy: reference_pi,
+        slabs: slabs
+            .iter()
+            .map(|(e2, vol, diff, u)| (e2 / err2, diff / *vol, u / *vol))
+            .collect(),
+        z_range: (z_min, z_max),
+    }
+}
+
+/// Cases, levels' characteristic lengths (m) and radii (× that length) of
+/// the grid behind `cut::RAMP_SPAN`.
+const GRID_CASES: [&str; 4] = ["gravity", "stretch_face", "bend_face", "stretch"];
+const GRID_LENGTHS: [f64; 5] = [0.012, 0.008, 0.006, 0.0045, 0.0035];
+const GRID_FACTORS: [f64; 6] = [1.0, 1.5, 2.0, 2.5, 3.0, 4.0];
+
+/// Every case, level and radius of the grid, with and without the ramp
+/// (Tet4); rows to `csv` (whole, at the end).
+fn ramp_span(csv: &Path) {
+    let cases = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
+    let mut rows = Vec::new();
+    for case in GRID_CASES {
+        let scene = Scene::load(&cases.join(format!("{case}.toml"))).expect("case");
+        for (level, length) in GRID_LENGTHS.iter().enumerate() {
+            for factor in GRID_FACTORS {
+                let radius = factor * length;
+                for ramp in [false, true] {
+                    let blending = Some(if ramp { Blending::Ramp } else { Blending::None });
+                    let c = compare(scene.clone(), "geo", level, radius, blending);
+                    eprintln!(
+                        "{case} L{level} R {:.2} mm ramp {ramp}: {} DOFs, L2 {:.4e}, Π − Π_ref {:.4e} J",
+                        radius * 1e3,
+                        c.dofs,
+                        c.l2,
+                        c.energy - c.reference_energy
+                    );
+                    rows.push(RampRow {
+                        case: case.to_string(),
+                        level,
+                        median_edge_m: c.median_edge,
+                        radius_m: radius,
+                        ramp,
+                        dofs: c.dofs,
+                        l2_rel: c.l2,
+                        potential_energy_j: c.energy,
+                        reference_energy_j: c.reference_energy,
+                    });
+                }
+            }
+        }
+    }
+    write_csv(csv, &rows).expect("writing the CSV");
+    eprintln!("wrote {}", csv.display());
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if args.first().is_some_and(|a| a == "ramp-span") {
+        let csv = match args.get(1..) {
+            Some([flag, path, ..]) if flag == "--csv" => path.clone(),
+            _ => "reports/data/ramp_span.csv".to_string(),
+        };
+        ramp_span(Path::new(&csv));
+        return;
+    }
+    let [case, variant, level, ..] = args.as_slice() else {
+        eprintln!("usage: error_map CASE fem|tip|extend|geo LEVEL [tet10] [R=m] [ramp=on|off] | ramp-span [--csv FILE]");
+        std::process::exit(2);
+    };
+    let level: usize = level.parse().expect("level");
+    let mut scene = Scene::load(Path::new(case)).expect("case");
+    let flags = &args[3..];
+    if flags.iter().any(|s| s == "tet10") {
+        scene.element = ElementKind::Tet10;
+    }
+    let radius = flags
+        .iter()
+        .find_map(|s| s.strip_prefix("R="))
+        .map_or(GEOMETRIC_TIP_RADIUS, |r| r.parse().expect("R=<metres>"));
+    let blending = flags
+        .iter()
+        .find_map(|s| s.strip_prefix("ramp="))
+        .map(|r| match r {
+            "on" => Blending::Ramp,
+            "off" => Blending::None,
+            _ => panic!("ramp=on|off"),
+        });
+    let tractions = !scene.tractions.is_empty();
+    let (name, element) = (scene.name.clone(), scene.element);
+    let c = compare(scene, variant, level, radius, blending);
     println!(
-        "{} {variant} {} L{level}: {} DOFs, L2 {:.4e}, Π {energy:.8e} J (reference's {reference_pi:.8e} J{})",
-        scene.name,
-        scene.element.name(),
-        model.n_free,
-        (err2 / norm2).sqrt(),
-        if scene.tractions.is_empty() { "" } else { ", tractions left out" }
+        "{name} {variant} {} L{level}: {} DOFs, L2 {:.4e}, Π {:.8e} J (reference's {:.8e} J{})",
+        element.name(),
+        c.dofs,
+        c.l2,
+        c.energy,
+        c.reference_energy,
+        if tractions {
+            ", tractions left out"
+        } else {
+            ""
+        }
     );
-    for (k, (e2, vol, diff, u)) in slabs.iter().enumerate() {
+    let (z_min, z_max) = c.z_range;
+    for (k, (share, d, u)) in c.slabs.iter().enumerate() {
         let z0 = z_min + (z_max - z_min) * k as f64 / SLABS as f64;
-        let (d, u) = (diff / *vol, u / *vol);
         println!(
             "  z {z0:.4}…: {:5.1} % of the error², mean u_ref − u_h ({:+.2e}, {:+.2e}, {:+.2e}), mean u_ref ({:+.2e}, {:+.2e}, {:+.2e})",
-            100.0 * e2 / err2, d.x, d.y, d.z, u.x, u.y, u.z
+            100.0 * share, d.x, d.y, d.z, u.x, u.y, u.z
         );
     }
 }

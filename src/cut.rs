@@ -459,8 +459,8 @@ impl Blending {
     /// few elements and can cost where it spans one or two. The seed's beam
     /// (Tet4, unstructured meshes L0 … L4, `gravity`, `stretch_face`,
     /// `bend_face`, `stretch`; R = 1 … 4 of gmsh's characteristic length,
-    /// 120 runs with and without the ramp, `examples/error_map.rs CASE geo
-    /// LEVEL R=… ramp=on|off`),
+    /// 120 runs with and without the ramp, `examples/error_map.rs ramp-span`,
+    /// the report's section "What the ramp buys on the beam"),
     /// judged by the gap of the total potential energy Π to the FEniCSx
     /// reference's (half the energy-norm error squared): with R ≥ 2.5 h (h
     /// the median edge length) the ramp narrowed the gap in all 36 runs (to

@@ -10,10 +10,12 @@
 //! - [`fixtures`]: the clamped beam and the fragment spin that tests, benches and examples share.
 //! - [`report`]: `reports/README.md` and its plots.
 //! - [`sweep`]: a progressive cut's cost as a time series (CSV and SVG).
+//! - [`ramp`]: what the ramp of corrected X-FEM buys on the beam against R / h.
 
 pub mod converge;
 pub mod exact;
 pub mod fixtures;
+pub mod ramp;
 pub mod reference;
 pub mod report;
 pub mod stress;

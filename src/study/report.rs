@@ -576,6 +576,9 @@ pub fn write_report(reports: &Path, criterion_dir: &Path, machine: &str) -> Resu
         md.push('\n');
     }
     md.push_str(&exact_section(reports)?);
+    if let Some(section) = crate::study::ramp::section(reports)? {
+        md.push_str(&section);
+    }
     if let Some(section) = static_section(reports)? {
         md.push_str(&section);
     }
@@ -1668,6 +1671,36 @@ mod tests {
         let readme = std::fs::read_to_string(reports.join("README.md")).unwrap();
         assert!(readme.contains("### `through_cut`") && readme.contains("### `near_front`"));
         assert!(readme.contains("### What `tip_radius` buys"));
+    }
+
+    /// The committed measurement behind `cut::RAMP_SPAN`
+    /// (reports/data/ramp_span.csv, `examples/error_map.rs ramp-span`):
+    /// every pair of runs with R ≥ 2.5 h narrowed the gap of Π to the
+    /// reference's with the ramp, and the report's section tabulates every
+    /// pair with that tally.
+    #[test]
+    fn the_committed_ramp_span_backs_the_rule_and_the_report_shows_it() {
+        use crate::study::ramp;
+        let reports = Path::new(env!("CARGO_MANIFEST_DIR")).join("reports");
+        let rows = ramp::read_csv(&reports.join(ramp::CSV)).unwrap();
+        let pairs = ramp::pairs(&rows);
+        assert_eq!(2 * pairs.len(), rows.len());
+        let above = ramp::tally(&pairs, crate::cut::RAMP_SPAN, true).unwrap();
+        assert!(above.runs >= 30, "{above:?}");
+        assert_eq!(above.narrowed, above.runs, "{above:?}");
+        let below = ramp::tally(&pairs, crate::cut::RAMP_SPAN, false).unwrap();
+        assert!(below.narrowed < below.runs, "{below:?}");
+        let md = ramp::section(&reports).unwrap().unwrap();
+        assert_eq!(
+            md.lines().filter(|l| l.starts_with("| `")).count(),
+            pairs.len()
+        );
+        assert!(md.contains(&format!(
+            "the ramp narrowed the gap in {} of {} runs",
+            above.runs, above.runs
+        )));
+        let readme = std::fs::read_to_string(reports.join("README.md")).unwrap();
+        assert!(readme.contains("## What the ramp buys on the beam, against R / h"));
     }
 
     #[test]
