@@ -138,8 +138,8 @@ impl TetMesh {
     /// The median over the elements of their mean edge length (vertex to
     /// vertex): the size h of a mesh meant as uniform. gmsh's meshes of the
     /// seed's beam at characteristic lengths 12 … 3.5 mm measure 0.91 …
-    /// 1.30 of it; the structured box, 1.26 / n. NaN for a mesh without
-    /// elements.
+    /// 1.30 of it; the unit box of n divisions (6 tets a cube), 1.26 / n.
+    /// NaN for a mesh without elements.
     pub fn median_edge_length(&self) -> f64 {
         let mut sizes: Vec<f64> = (0..self.n_elements())
             .map(|e| {
