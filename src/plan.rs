@@ -131,24 +131,25 @@ impl Plan {
                 .any(|c| c.front != Some(crate::scene::FrontMode::Extend));
         // Blending elements ramped where `Blending::for_cut` says so on this
         // mesh (a Tet4 `tip_radius` of `cut::RAMP_SPAN` elements or more);
-        // a radius under that says why not.
-        let resolved: Vec<crate::cut::Blending> = scene
+        // a radius under that says why not. Per cut: what it asks, and what
+        // this mesh makes of it.
+        let blendings: Vec<(crate::cut::Blending, crate::cut::Blending)> = scene
             .cuts
             .iter()
             .map(|c| {
                 let o = c.options();
-                o.blending(model.mesh.kind)
-                    .resolve(&model.mesh, o.tip_radius)
+                let asked = o.blending(model.mesh.kind);
+                (asked, asked.resolve(&model.mesh, o.tip_radius))
             })
             .collect();
-        let under_span = scene.cuts.iter().zip(&resolved).any(|(c, &b)| {
-            let o = c.options();
-            o.blending.is_none()
-                && o.blending(model.mesh.kind) == crate::cut::Blending::Auto
-                && b == crate::cut::Blending::None
+        let ramped = blendings
+            .iter()
+            .any(|&(_, b)| b == crate::cut::Blending::Ramp);
+        let under_span = blendings.iter().any(|&(asked, b)| {
+            asked == crate::cut::Blending::Auto && b == crate::cut::Blending::None
         });
         let h = || model.mesh.median_edge_length();
-        let ramp = if resolved.contains(&crate::cut::Blending::Ramp) {
+        let ramp = if ramped {
             format!(
                 "; tip_radius >= {} h (h = {:.3e} m, the median edge): blending elements ramped (corrected X-FEM), the ring's tip nodes carry branch functions {:?} of 0-3",
                 crate::cut::RAMP_SPAN,
