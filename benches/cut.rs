@@ -170,7 +170,7 @@ fn cut_step(c: &mut Criterion) {
 
 /// A front inside elements (the seed's cut shortened to x = 0.0137, inside
 /// the elements at every size): the front set-up (level sets, classification,
-/// tip quadrature cells) against the whole precompute, and a Newmark step
+/// sub-tets; then the tip quadrature's rules) against the whole precompute, and a Newmark step
 /// with the front tip-enriched (topological) against the same cut extended
 /// (issue 11's ≤ 10 % and ≤ 1.3× targets).
 /// Steps a `scene-step` sample averages over.
@@ -204,6 +204,31 @@ fn tip_step(c: &mut Criterion) {
                     })
                 },
             );
+            if front == "tip" {
+                // The tip quadrature alone: the rules of the cells of every
+                // element with a tip-enriched node (collapsed onto the front,
+                // polar or refined near it), with the element evaluators they
+                // come from, as the precompute integrates on them.
+                let m = model(mesh.clone(), Some(cut.clone()), Formulation::Linear);
+                let tip_elements: Vec<usize> = (0..n)
+                    .filter(|&e| mesh.element(e).iter().any(|&i| cut.tip[i].is_some()))
+                    .collect();
+                g.bench_function(
+                    BenchmarkId::new(format!("quadrature-tip/{k}/{n}tets"), label),
+                    |b| {
+                        let mut points = Vec::new();
+                        b.iter(|| {
+                            let mut count = 0;
+                            for &e in &tip_elements {
+                                let ev = m.element_evaluator(e);
+                                m.field_points_into(e, &ev, &mut points);
+                                count += points.len();
+                            }
+                            black_box(count)
+                        })
+                    },
+                );
+            }
             for formulation in [Formulation::Linear, Formulation::Corotational] {
                 let f = if formulation == Formulation::Linear {
                     "linear"
