@@ -1363,14 +1363,27 @@ fn setup_one(mesh: &TetMesh, input: &CutInput<'_>, index: usize) -> Result<CutSe
             // The jump behind the front in cut blending elements: R of it from
             // the tip functions, 1 − R from the Heaviside enrichment ramped
             // down by 1 − R, on all their vertices (those of I too).
+            // A cut on a node layer runs along the faces of the blending
+            // elements below it: their vertices on the layer (φ = 0) whose
+            // support the cut splits behind the front (`enrich`) make the
+            // Heaviside part of the jump there, those of I too; without it
+            // the jump there was R of what it must be (the exact near-front
+            // field on a crack along a node layer, n = 16, R = 0.2:
+            // interpolant H1 error 0.33 against 0.069 off the layer).
             for e in 0..mesh.n_elements() {
                 let v = mesh.vertices(e);
                 let blending = v.iter().any(|&i| ramp[i]) && !v.iter().all(|&i| ramp[i]);
-                if blending && matches!(elements[e], ElementCut::Cut { partial: false, .. }) {
-                    for i in v {
-                        if phi[i] != 0.0 {
-                            heaviside_too[i] = true;
-                        }
+                if !blending {
+                    continue;
+                }
+                let cut = matches!(elements[e], ElementCut::Cut { partial: false, .. });
+                let below_layer =
+                    v.iter().any(|&i| phi[i] < 0.0) && v.iter().all(|&i| phi[i] <= 0.0);
+                for i in v {
+                    if (cut && phi[i] != 0.0)
+                        || ((cut || below_layer) && phi[i] == 0.0 && enrich[i])
+                    {
+                        heaviside_too[i] = true;
                     }
                 }
             }
