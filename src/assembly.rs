@@ -674,8 +674,10 @@ pub enum FieldLoadAt<'a> {
 /// The volume part uses [`Model::field_points`] (degree 5 on each cell,
 /// collapsed rules at a front); the cut faces are the faces of the sub-tets
 /// on the zero set of the element's interpolated φ (seed eq. 72–73), each
-/// integrated from its own sub-tet's side with a 4×4 Duffy–Gauss rule. Add
-/// the result to [`Model::load`] for a manufactured solution.
+/// integrated from its own sub-tet's side with a 4×4 Duffy–Gauss rule, and,
+/// where the cut runs along element faces (φ = 0 at their three vertices,
+/// which carry the Heaviside enrichment), those faces from each element
+/// beside them. Add the result to [`Model::load`] for a manufactured solution.
 pub fn field_load(
     model: &Model,
     load: impl Fn(&nalgebra::Point3<f64>, i8, FieldLoadAt<'_>) -> Vector3<f64>,
@@ -737,8 +739,48 @@ pub fn field_load(
             let f = load(&x, side, FieldLoadAt::Volume);
             add(&x, side, w, f, &mut vals, &mut grads);
         }
-        let (Some(c), Some(ElementCut::Cut { sub_tets, .. })) = (model.cut.as_ref(), element_cut)
-        else {
+        // The traction on a triangle of the cut, outward away from `inner`,
+        // seen from `side`, with a 4×4 Duffy–Gauss rule.
+        let mut face_load =
+            |p: [nalgebra::Point3<f64>; 3], inner: &nalgebra::Point3<f64>, side: i8| {
+                let cross = (p[1] - p[0]).cross(&(p[2] - p[0]));
+                let area2 = cross.norm();
+                if area2 <= 0.0 {
+                    return;
+                }
+                let mut normal = cross / area2;
+                if normal.dot(&(inner - p[0])) > 0.0 {
+                    normal = -normal;
+                }
+                for &(u, wu) in &gauss {
+                    for &(v, wv) in &gauss {
+                        let (a, b) = (u, v * (1.0 - u));
+                        let x = p[0] + (p[1] - p[0]) * a + (p[2] - p[0]) * b;
+                        let w = wu * wv * (1.0 - u) * area2;
+                        let t = load(&x, side, FieldLoadAt::CutFace { normal: &normal });
+                        add(&x, side, w, t, &mut vals, &mut grads);
+                    }
+                }
+            };
+        let Some(c) = model.cut.as_ref() else {
+            continue;
+        };
+        let v = mesh.vertices(e);
+        let Some(ElementCut::Cut { sub_tets, .. }) = element_cut else {
+            // A cut along the element's faces (on a node layer, φ = 0 at
+            // their vertices after the snap): each face whose three
+            // vertices carry the Heaviside enrichment (the cut opens
+            // there), from the side of the element's fourth vertex.
+            for (opposite, face) in TET_FACES.iter().enumerate() {
+                let tri = face.map(|k| v[k]);
+                if tri
+                    .iter()
+                    .all(|&i| c.phi[i] == 0.0 && c.enriched[i].is_some())
+                {
+                    let side = if c.phi[v[opposite]] < 0.0 { -1 } else { 1 };
+                    face_load(face.map(|k| verts[k]), &verts[opposite], side);
+                }
+            }
             continue;
         };
         let phi = mesh.vertices(e).map(|i| c.phi[i]);
@@ -753,25 +795,8 @@ pub fn field_load(
                 if p.iter().any(|x| phi_at(x).abs() > tol) {
                     continue;
                 }
-                let cross = (p[1] - p[0]).cross(&(p[2] - p[0]));
-                let area2 = cross.norm();
-                if area2 <= 0.0 {
-                    continue;
-                }
                 // Outward: away from the sub-tet's fourth vertex.
-                let mut normal = cross / area2;
-                if normal.dot(&(s.vertices[opposite] - p[0])) > 0.0 {
-                    normal = -normal;
-                }
-                for &(u, wu) in &gauss {
-                    for &(v, wv) in &gauss {
-                        let (a, b) = (u, v * (1.0 - u));
-                        let x = p[0] + (p[1] - p[0]) * a + (p[2] - p[0]) * b;
-                        let w = wu * wv * (1.0 - u) * area2;
-                        let t = load(&x, s.side, FieldLoadAt::CutFace { normal: &normal });
-                        add(&x, s.side, w, t, &mut vals, &mut grads);
-                    }
-                }
+                face_load(p, &s.vertices[opposite], s.side);
             }
         }
     }
