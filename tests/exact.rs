@@ -6,7 +6,7 @@ use nalgebra::{Matrix3, Point3, Vector3};
 use xfem_cut::assembly::{field_load, FieldLoadAt};
 use xfem_cut::cut::{setup_cut, CutInput, DEFAULT_SNAP};
 use xfem_cut::material::Lame;
-use xfem_cut::mesh::ElementKind;
+use xfem_cut::mesh::{ElementKind, TetMesh};
 use xfem_cut::model::{Formulation, Model, ModelInput};
 use xfem_cut::solve::Cholesky;
 use xfem_cut::statics::{solve_static, StaticOptions};
@@ -147,7 +147,7 @@ fn a_cut_along_element_faces_takes_its_traction_and_converges() {
         };
         let on = at(0.0);
         for (kind, div) in [(ElementKind::Tet4, 4), (ElementKind::Tet10, 2)] {
-            let model = through_model(&on, kind, div);
+            let model = through_model(&on, box_of(kind, div));
             let n = model.mesh.n_nodes();
             let face = field_load(&model, |_, side, at| match at {
                 FieldLoadAt::CutFace { normal: out } => {
@@ -166,7 +166,7 @@ fn a_cut_along_element_faces_takes_its_traction_and_converges() {
         ] {
             let errors = |tc: &ThroughCut| {
                 divs.map(|div| {
-                    let mut model = through_model(tc, kind, div);
+                    let mut model = through_model(tc, box_of(kind, div));
                     let load = field_load(&model, |x, side, at| tc.load(x, side, at, &lame));
                     for (l, f) in model.load.iter_mut().zip(load) {
                         *l += f;
@@ -193,15 +193,9 @@ fn a_cut_along_element_faces_takes_its_traction_and_converges() {
     }
 }
 
-/// The through cut `tc` on the structured box: X-FEM Heaviside, every
-/// boundary node prescribed from its side's field.
-fn through_model(tc: &ThroughCut, kind: ElementKind, div: usize) -> Model {
-    let mesh = unit_box(div, ElementKind::Tet4, 0.0);
-    let mesh = if kind == ElementKind::Tet10 {
-        mesh.to_tet10()
-    } else {
-        mesh
-    };
+/// The through cut `tc` on `mesh`: X-FEM Heaviside, every boundary node
+/// prescribed from its side's field.
+fn through_model(tc: &ThroughCut, mesh: TetMesh) -> Model {
     let cut = setup_cut(&mesh, &[CutInput::extend(&tc.patch(), DEFAULT_SNAP)]).unwrap();
     let fixed = tc.boundary_values(&mesh, &cut);
     Model::build(ModelInput {
@@ -216,6 +210,16 @@ fn through_model(tc: &ThroughCut, kind: ElementKind, div: usize) -> Model {
         need_mass: false,
     })
     .unwrap()
+}
+
+/// The structured box of `div` divisions (Tet10: its Tet4 mesh's, mid-nodes added).
+fn box_of(kind: ElementKind, div: usize) -> TetMesh {
+    let mesh = unit_box(div, ElementKind::Tet4, 0.0);
+    if kind == ElementKind::Tet10 {
+        mesh.to_tet10()
+    } else {
+        mesh
+    }
 }
 
 fn print(rows: &[Row]) {
@@ -339,23 +343,8 @@ fn boundary_values_give_each_sides_field_at_boundary_nodes_from_both_sides() {
     // u_i + ψ(s) a_i the exact field of side s at the node, for s = ±1, at
     // every enriched boundary node (Tet10 mid-nodes included).
     let tc = ThroughCut::new();
-    let patch = tc.patch();
     for kind in [ElementKind::Tet4, ElementKind::Tet10] {
-        let mesh = unit_box(4, kind, 0.2);
-        let cut = setup_cut(&mesh, &[CutInput::extend(&patch, DEFAULT_SNAP)]).unwrap();
-        let fixed = tc.boundary_values(&mesh, &cut);
-        let model = Model::build(ModelInput {
-            mesh,
-            material: MATERIAL,
-            formulation: Formulation::Linear,
-            cut: Some(cut),
-            fixed,
-            gravity: None,
-            body_force: None,
-            tractions: &[],
-            need_mass: false,
-        })
-        .unwrap();
+        let model = through_model(&tc, unit_box(4, kind, 0.2));
         let mut d = vec![0.0; model.n_dofs()];
         for p in &model.prescribed {
             d[p.dof] = p.value;
