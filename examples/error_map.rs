@@ -8,8 +8,14 @@
 //! error squared, so of two runs on one body the lower Π is the more
 //! accurate in energy (`extend` lengthens the cut, a different body).
 //!
-//! `cargo run --release --example error_map -- cases/bend_face.toml tip 3 [tet10] [R=0.02] [ramp=on|off]`
-//! (needs `make refs`: the graded reference and the meshes L0…L4). `R=`
+//! `cargo run --release --example error_map -- cases/bend_face.toml tip 3 [tet10] [R=0.02] [ramp=on|off] [mesh=DIR]`
+//! (needs `make refs`: the graded reference and the meshes L0…L4). `mesh=DIR`
+//! runs X-FEM on `DIR/L<level>.msh` instead: e.g. the crack mesh
+//! with its crack nodes not duplicated (`refs/mesh.py beam_crack H
+//! DIR/L<level>.msh --no-duplicate`, H the level's size in
+//! `refs/out/meshes/beam_crack/L<level>.json`), on which X-FEM with the
+//! extended front equals FEM on the pre-cut mesh and the tip front can be
+//! set beside remeshed FEM on one mesh. `R=`
 //! sets `geo`'s radius (m); `ramp=on|off` forces the blending elements'
 //! treatment (the ramp of corrected X-FEM, or none) where a case takes
 //! `cut::Blending::for_cut` (the ramp where a Tet4 R spans 2.5 median edges).
@@ -51,6 +57,7 @@ fn compare(
     level: usize,
     radius: f64,
     blending: Option<Blending>,
+    mesh_dir: Option<&Path>,
 ) -> Comparison {
     let (family, reference) = reference_of(&scene.name).expect("no fine reference: make refs");
     let family = if variant == "fem" {
@@ -67,7 +74,11 @@ fn compare(
         }
         "beam_uncut".to_string()
     };
-    let mesh = out_dir().join(format!("meshes/{family}/L{level}.msh"));
+    // FEM keeps the pre-cut mesh (the cut is in it).
+    let mesh = match mesh_dir.filter(|_| variant != "fem") {
+        Some(dir) => dir.join(format!("L{level}.msh")),
+        None => out_dir().join(format!("meshes/{family}/L{level}.msh")),
+    };
     let reference = read_reference(&reference).expect("reference");
     let field = Field {
         mesh: &reference.mesh,
@@ -149,7 +160,7 @@ fn ramp_span(csv: &Path) {
                 let radius = factor * length;
                 for ramp in [false, true] {
                     let blending = Some(if ramp { Blending::Ramp } else { Blending::None });
-                    let c = compare(scene.clone(), "geo", level, radius, blending);
+                    let c = compare(scene.clone(), "geo", level, radius, blending, None);
                     eprintln!(
                         "{case} L{level} R {:.2} mm ramp {ramp}: {} DOFs, L2 {:.4e}, Π − Π_ref {:.4e} J",
                         radius * 1e3,
@@ -187,7 +198,7 @@ fn main() {
         return;
     }
     let [case, variant, level, ..] = args.as_slice() else {
-        eprintln!("usage: error_map CASE fem|tip|extend|geo LEVEL [tet10] [R=m] [ramp=on|off] | ramp-span [--csv FILE]");
+        eprintln!("usage: error_map CASE fem|tip|extend|geo LEVEL [tet10] [R=m] [ramp=on|off] [mesh=DIR] | ramp-span [--csv FILE]");
         std::process::exit(2);
     };
     let level: usize = level.parse().expect("level");
@@ -208,9 +219,13 @@ fn main() {
             "off" => Blending::None,
             _ => panic!("ramp=on|off"),
         });
+    let mesh_dir = flags
+        .iter()
+        .find_map(|s| s.strip_prefix("mesh="))
+        .map(Path::new);
     let tractions = !scene.tractions.is_empty();
     let (name, element) = (scene.name.clone(), scene.element);
-    let c = compare(scene, variant, level, radius, blending);
+    let c = compare(scene, variant, level, radius, blending, mesh_dir);
     println!(
         "{name} {variant} {} L{level}: {} DOFs, L2 {:.4e}, Π {:.8e} J (reference's {:.8e} J{})",
         element.name(),
