@@ -11,8 +11,8 @@
 //! `cargo run --release --example error_map -- cases/bend_face.toml tip 3 [tet10] [R=0.02] [ramp=on|off] [mesh=DIR]`
 //! (needs `make refs`: the graded reference and the meshes L0…L4). `mesh=DIR`
 //! runs X-FEM on `DIR/L<level>.msh` instead: e.g. the crack mesh
-//! with its crack nodes not duplicated (`refs/mesh.py beam_crack H
-//! DIR/L<level>.msh --no-duplicate`, H the level's size in
+//! with its crack nodes not duplicated (`refs/crack_mesh_uncut.py H
+//! DIR/L<level>.msh`, H the level's size in
 //! `refs/out/meshes/beam_crack/L<level>.json`), on which X-FEM with the
 //! extended front equals FEM on the pre-cut mesh and the tip front can be
 //! set beside remeshed FEM on one mesh. `R=`

@@ -225,15 +225,8 @@ def main() -> None:
     ap.add_argument("h", type=float, help="mesh size (m)")
     ap.add_argument("out", type=Path)
     ap.add_argument("--front", type=float, help="graded: element size at the singular curves (m); h is the far field")
-    ap.add_argument("--no-duplicate", action="store_true",
-                    help="keep the cut's nodes shared (the mesh of the crack's geometry, uncut: X-FEM on it "
-                         "with the extended front equals FEM on the duplicated mesh)")
     a = ap.parse_args()
-    if a.no_duplicate:
-        points, tets = generate(a.family, a.h, a.front)
-        n_dup = 0
-    else:
-        points, tets, n_dup = make(a.family, a.h, a.front)
+    points, tets, n_dup = make(a.family, a.h, a.front)
     check(a.family, points, tets, n_dup)
     write_msh(a.out, points, tets)
     info = {"family": a.family, "h_far": a.h, "h_front_requested": a.front, "nodes": int(len(points)),
