@@ -24,20 +24,13 @@ use nalgebra::{Point3, Vector3};
 use xfem_cut::assembly::field_load;
 use xfem_cut::cut::{setup_cut, Blending, CutInput, FrontMode, DEFAULT_SNAP};
 use xfem_cut::material::Lame;
-use xfem_cut::mesh::{ElementKind, TetMesh};
-use xfem_cut::model::{Formulation, Model, ModelInput};
+use xfem_cut::mesh::ElementKind;
+use xfem_cut::model::Model;
 use xfem_cut::solve::Cholesky;
 use xfem_cut::statics::{solve_static, StaticOptions};
-use xfem_cut::study::exact::{relative_errors, unit_box, ThroughCut, WilliamsFront, MATERIAL};
-
-/// The structured unit box, `div` divisions (Tet10: mid-nodes added).
-fn box_of(kind: ElementKind, div: usize) -> TetMesh {
-    let mesh = unit_box(div, ElementKind::Tet4, 0.0);
-    match kind {
-        ElementKind::Tet10 => mesh.to_tet10(),
-        ElementKind::Tet4 => mesh,
-    }
-}
+use xfem_cut::study::exact::{
+    linear_model, relative_errors, unit_box, ThroughCut, WilliamsFront, MATERIAL,
+};
 
 /// Solves `model` and returns its (L2, energy) errors against `exact`.
 fn errors(
@@ -48,25 +41,6 @@ fn errors(
     let sol =
         solve_static(model, &mut chol, &StaticOptions::default()).map_err(|e| e.to_string())?;
     Ok(relative_errors(model, &sol.d, exact))
-}
-
-fn build(
-    mesh: TetMesh,
-    cut: xfem_cut::cut::CutSetup,
-    fixed: Vec<(usize, [Option<f64>; 3])>,
-) -> Result<Model, String> {
-    Model::build(ModelInput {
-        mesh,
-        material: MATERIAL,
-        formulation: Formulation::Linear,
-        cut: Some(cut),
-        fixed,
-        gravity: None,
-        body_force: None,
-        tractions: &[],
-        need_mass: false,
-    })
-    .map_err(|e| e.to_string())
 }
 
 fn near_front() {
@@ -178,7 +152,7 @@ fn near_front() {
         println!("  {name}");
         let patch = front.patch();
         for (variant, kind, div, radius, blending) in variants {
-            let mesh = box_of(kind, div);
+            let mesh = unit_box(div, kind, 0.0);
             let input = CutInput {
                 surface: &patch,
                 snap: DEFAULT_SNAP,
@@ -190,7 +164,7 @@ fn near_front() {
                 .map_err(|e| e.to_string())
                 .and_then(|cut| {
                     let fixed = front.boundary_values(&mesh, &cut);
-                    build(mesh, cut, fixed)
+                    linear_model(mesh, Some(cut), fixed).map_err(|e| e.to_string())
                 })
                 .and_then(|model| errors(&model, |x, s| front.exact(x, s)));
             match run {
@@ -251,12 +225,12 @@ fn through_cut() {
             (ElementKind::Tet10, 4),
             (ElementKind::Tet10, 6),
         ] {
-            let mesh = box_of(kind, div);
+            let mesh = unit_box(div, kind, 0.0);
             let run = setup_cut(&mesh, &[CutInput::extend(&patch, DEFAULT_SNAP)])
                 .map_err(|e| e.to_string())
                 .and_then(|cut| {
                     let fixed = tc.boundary_values(&mesh, &cut);
-                    build(mesh, cut, fixed)
+                    linear_model(mesh, Some(cut), fixed).map_err(|e| e.to_string())
                 })
                 .and_then(|mut model| {
                     let load = field_load(&model, |x, side, at| tc.load(x, side, at, &lame));

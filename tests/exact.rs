@@ -7,12 +7,12 @@ use xfem_cut::assembly::{field_load, FieldLoadAt};
 use xfem_cut::cut::{setup_cut, CutInput, DEFAULT_SNAP};
 use xfem_cut::material::Lame;
 use xfem_cut::mesh::{ElementKind, TetMesh};
-use xfem_cut::model::{Formulation, Model, ModelInput};
+use xfem_cut::model::Model;
 use xfem_cut::solve::Cholesky;
 use xfem_cut::statics::{solve_static, StaticOptions};
 use xfem_cut::study::exact::{
-    check_radius_sweep, last_orders, radius_sweep, relative_errors, run_study, stress,
-    study_variants, unit_box, Case, Row, ThroughCut, MATERIAL,
+    check_radius_sweep, last_orders, linear_model, radius_sweep, relative_errors, run_study,
+    stress, study_variants, unit_box, Case, Row, ThroughCut, MATERIAL,
 };
 
 #[test]
@@ -78,18 +78,7 @@ fn field_load_integrates_volumes_and_both_cut_faces() {
     ] {
         let mesh = unit_box(div, kind, 0.2);
         let cut = setup_cut(&mesh, &[CutInput::extend(&patch, DEFAULT_SNAP)]).unwrap();
-        let model = Model::build(ModelInput {
-            mesh,
-            material: MATERIAL,
-            formulation: Formulation::Linear,
-            cut: Some(cut),
-            fixed: vec![],
-            gravity: None,
-            body_force: None,
-            tractions: &[],
-            need_mass: false,
-        })
-        .unwrap();
+        let model = linear_model(mesh, Some(cut), vec![]).unwrap();
         let n = model.mesh.n_nodes();
         let total = |load: &[f64]| {
             (0..n).fold(Vector3::zeros(), |s, i| {
@@ -147,7 +136,7 @@ fn a_cut_along_element_faces_takes_its_traction_and_converges() {
         };
         let on = at(0.0);
         for (kind, div) in [(ElementKind::Tet4, 4), (ElementKind::Tet10, 2)] {
-            let model = through_model(&on, box_of(kind, div));
+            let model = through_model(&on, unit_box(div, kind, 0.0));
             let n = model.mesh.n_nodes();
             let face = field_load(&model, |_, side, at| match at {
                 FieldLoadAt::CutFace { normal: out } => {
@@ -166,7 +155,7 @@ fn a_cut_along_element_faces_takes_its_traction_and_converges() {
         ] {
             let errors = |tc: &ThroughCut| {
                 divs.map(|div| {
-                    let mut model = through_model(tc, box_of(kind, div));
+                    let mut model = through_model(tc, unit_box(div, kind, 0.0));
                     let load = field_load(&model, |x, side, at| tc.load(x, side, at, &lame));
                     for (l, f) in model.load.iter_mut().zip(load) {
                         *l += f;
@@ -198,28 +187,7 @@ fn a_cut_along_element_faces_takes_its_traction_and_converges() {
 fn through_model(tc: &ThroughCut, mesh: TetMesh) -> Model {
     let cut = setup_cut(&mesh, &[CutInput::extend(&tc.patch(), DEFAULT_SNAP)]).unwrap();
     let fixed = tc.boundary_values(&mesh, &cut);
-    Model::build(ModelInput {
-        mesh,
-        material: MATERIAL,
-        formulation: Formulation::Linear,
-        cut: Some(cut),
-        fixed,
-        gravity: None,
-        body_force: None,
-        tractions: &[],
-        need_mass: false,
-    })
-    .unwrap()
-}
-
-/// The structured box of `div` divisions (Tet10: its Tet4 mesh's, mid-nodes added).
-fn box_of(kind: ElementKind, div: usize) -> TetMesh {
-    let mesh = unit_box(div, ElementKind::Tet4, 0.0);
-    if kind == ElementKind::Tet10 {
-        mesh.to_tet10()
-    } else {
-        mesh
-    }
+    linear_model(mesh, Some(cut), fixed).unwrap()
 }
 
 fn print(rows: &[Row]) {

@@ -146,6 +146,27 @@ pub fn unit_box(div: usize, kind: ElementKind, jitter: f64) -> TetMesh {
     }
 }
 
+/// The linear static model of an exact-solution problem on `mesh`: the
+/// study's material, `cut` (None on a pre-cut mesh), the DOFs `fixed`, no
+/// other load (add a manufactured one to [`Model::load`]).
+pub fn linear_model(
+    mesh: TetMesh,
+    cut: Option<CutSetup>,
+    fixed: Vec<(usize, [Option<f64>; 3])>,
+) -> Result<Model, crate::model::ModelError> {
+    Model::build(ModelInput {
+        mesh,
+        material: MATERIAL,
+        formulation: Formulation::Linear,
+        cut,
+        fixed,
+        gravity: None,
+        body_force: None,
+        tractions: &[],
+        need_mass: false,
+    })
+}
+
 /// A plane patch through `c` with unit normal `n`, reaching 3 beyond the unit box.
 fn plane_patch(c: Point3<f64>, n: Vector3<f64>) -> PlanarPatch {
     let t0 = if n.x.abs() < 0.9 {
@@ -985,17 +1006,7 @@ pub fn solve(variant: &Variant, level: usize) -> Result<Row, StudyError> {
     };
     let (heaviside, tip) = (cut.n_heaviside(), cut.n_tip());
     let elements = mesh.n_elements();
-    let mut model = Model::build(ModelInput {
-        mesh,
-        material: MATERIAL,
-        formulation: Formulation::Linear,
-        cut: Some(cut),
-        fixed,
-        gravity: None,
-        body_force: None,
-        tractions: &[],
-        need_mass: false,
-    })?;
+    let mut model = linear_model(mesh, Some(cut), fixed)?;
     if variant.case == Case::ThroughCut {
         let load = field_load(&model, |x, side, at| through.load(x, side, at, &lame));
         for (l, f) in model.load.iter_mut().zip(load) {
@@ -1047,17 +1058,7 @@ fn solve_precut(
         .collect();
     let elements = mesh.n_elements();
     let side_copy = side.clone();
-    let mut model = Model::build(ModelInput {
-        mesh,
-        material: MATERIAL,
-        formulation: Formulation::Linear,
-        cut: None,
-        fixed,
-        gravity: None,
-        body_force: None,
-        tractions: &[],
-        need_mass: false,
-    })?;
+    let mut model = linear_model(mesh, None, fixed)?;
     let load = field_load(&model, |x, s, at| tc.load(x, s, at, &lame));
     for (l, f) in model.load.iter_mut().zip(load) {
         *l += f;
