@@ -8,14 +8,17 @@
 //! error squared, so of two runs on one body the lower Π is the more
 //! accurate in energy (`extend` lengthens the cut, a different body).
 //!
-//! `cargo run --release --example error_map -- cases/bend_face.toml tip 3 [tet10] [R=0.02] [ramp=on|off] [mesh=DIR]`
+//! `cargo run --release --example error_map -- cases/bend_face.toml tip 3 [tet10] [R=0.02] [ramp=on|off] [mesh=DIR] [ref=FILE]`
 //! (needs `make refs`: the graded reference and the meshes L0…L4). `mesh=DIR`
 //! runs X-FEM on `DIR/L<level>.msh` instead: e.g. the crack mesh
 //! with its crack nodes not duplicated (`refs/crack_mesh_uncut.py H
 //! DIR/L<level>.msh`, H the level's size in
 //! `refs/out/meshes/beam_crack/L<level>.json`), on which X-FEM with the
 //! extended front equals FEM on the pre-cut mesh and the tip front can be
-//! set beside remeshed FEM on one mesh. `R=`
+//! set beside remeshed FEM on one mesh; with `--strip-edges HS` that mesh
+//! is graded towards the face cases' strip edges, the cases' second
+//! singular line. `ref=FILE` judges against another reference VTU (e.g.
+//! one solved on a mesh graded otherwise). `R=`
 //! sets `geo`'s radius (m); `ramp=on|off` forces the blending elements'
 //! treatment (the ramp of corrected X-FEM, or none) where a case takes
 //! `cut::Blending::for_cut` (the ramp where a Tet4 R spans 2.5 median edges).
@@ -58,8 +61,10 @@ fn compare(
     radius: f64,
     blending: Option<Blending>,
     mesh_dir: Option<&Path>,
+    reference_file: Option<&Path>,
 ) -> Comparison {
     let (family, reference) = reference_of(&scene.name).expect("no fine reference: make refs");
+    let reference = reference_file.map_or(reference, Path::to_path_buf);
     let family = if variant == "fem" {
         scene.cuts.clear();
         family
@@ -160,7 +165,7 @@ fn ramp_span(csv: &Path) {
                 let radius = factor * length;
                 for ramp in [false, true] {
                     let blending = Some(if ramp { Blending::Ramp } else { Blending::None });
-                    let c = compare(scene.clone(), "geo", level, radius, blending, None);
+                    let c = compare(scene.clone(), "geo", level, radius, blending, None, None);
                     eprintln!(
                         "{case} L{level} R {:.2} mm ramp {ramp}: {} DOFs, L2 {:.4e}, Π − Π_ref {:.4e} J",
                         radius * 1e3,
@@ -198,7 +203,7 @@ fn main() {
         return;
     }
     let [case, variant, level, ..] = args.as_slice() else {
-        eprintln!("usage: error_map CASE fem|tip|extend|geo LEVEL [tet10] [R=m] [ramp=on|off] [mesh=DIR] | ramp-span [--csv FILE]");
+        eprintln!("usage: error_map CASE fem|tip|extend|geo LEVEL [tet10] [R=m] [ramp=on|off] [mesh=DIR] [ref=FILE] | ramp-span [--csv FILE]");
         std::process::exit(2);
     };
     let level: usize = level.parse().expect("level");
@@ -223,9 +228,21 @@ fn main() {
         .iter()
         .find_map(|s| s.strip_prefix("mesh="))
         .map(Path::new);
+    let reference_file = flags
+        .iter()
+        .find_map(|s| s.strip_prefix("ref="))
+        .map(Path::new);
     let tractions = !scene.tractions.is_empty();
     let (name, element) = (scene.name.clone(), scene.element);
-    let c = compare(scene, variant, level, radius, blending, mesh_dir);
+    let c = compare(
+        scene,
+        variant,
+        level,
+        radius,
+        blending,
+        mesh_dir,
+        reference_file,
+    );
     println!(
         "{name} {variant} {} L{level}: {} DOFs, L2 {:.4e}, Π {:.8e} J (reference's {:.8e} J{})",
         element.name(),

@@ -6,22 +6,74 @@ pre-cut mesh, so the tip front can be set beside remeshed FEM on one mesh
 (`examples/error_map.rs CASE tip|extend LEVEL mesh=DIR`). Kept apart from mesh.py, whose hash is
 an input of every reference.
 
+With --strip-edges HS the mesh is graded towards the free edges of the `*_face` cases' top-face
+strips (x = 0.005 and x = 0.025 on z = 0.2; size HS there, growing as mesh.py grades), not towards
+the crack front: the strip edge is a second singular line of those cases, and resolving it in the
+mesh shows the crack treatments apart (refs/README.md, "Why the strip edges are graded").
+
     /usr/bin/python3 refs/crack_mesh_uncut.py 0.006 OUT/L2.msh   # h of the level: out/meshes/beam_crack/L2.json
+    /usr/bin/python3 refs/crack_mesh_uncut.py 0.006 OUT/L2.msh --strip-edges 0.0015
 """
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
+import gmsh
+
+import mesh
 from mesh import check, generate, write_msh
+
+
+def strip_graded(h: float, h_edge: float):
+    """`beam_crack`'s geometry meshed with size h, graded to h_edge at the strips' free edges."""
+    gmsh.initialize()
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.option.setNumber("General.NumThreads", 1)
+        gmsh.option.setNumber("Mesh.RandomSeed", 1)
+        gmsh.model.add("beam_crack_strips")
+        mesh.build_geometry("beam_crack")
+        edges = []
+        for dim, tag in gmsh.model.getEntities(1):
+            x0, _, z0, x1, _, _ = gmsh.model.getBoundingBox(dim, tag)
+            if any(abs(x0 - e) < 1e-5 and abs(x1 - e) < 1e-5 for e in mesh.STRIP_EDGES) and z0 > mesh.BOX[2] - 1e-5:
+                edges.append(tag)
+        if len(edges) != len(mesh.STRIP_EDGES):
+            raise RuntimeError(f"found {len(edges)} strip edges, expected {len(mesh.STRIP_EDGES)}")
+        gmsh.option.setNumber("Mesh.MeshSizeMax", h)
+        gmsh.option.setNumber("Mesh.MeshSizeMin", 0.2 * h_edge)
+        gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
+        gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+        gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+        field = gmsh.model.mesh.field
+        dist = field.add("Distance")
+        field.setNumbers(dist, "CurvesList", edges)
+        field.setNumber(dist, "NumPointsPerCurve", int(mesh.BOX[1] / h_edge) * 4)
+        thr = field.add("Threshold")
+        field.setNumber(thr, "InField", dist)
+        field.setNumber(thr, "SizeMin", h_edge)
+        field.setNumber(thr, "SizeMax", h)
+        field.setNumber(thr, "DistMin", 2 * h_edge)
+        field.setNumber(thr, "DistMax", 2 * h_edge + (h - h_edge) / mesh.GRADING)
+        field.setAsBackgroundMesh(thr)
+        points, tets, _ = mesh.generate_tets()
+    finally:
+        gmsh.finalize()
+    return mesh.used_nodes(points, tets)[:2]
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("h", type=float, help="mesh size (m), as the level's h_far")
     ap.add_argument("out", type=Path)
+    ap.add_argument("--strip-edges", type=float, metavar="HS",
+                    help="grade towards the strips' free edges to size HS (m) instead of meshing uniformly")
     a = ap.parse_args()
-    points, tets = generate("beam_crack", a.h)
+    if a.strip_edges is None:
+        points, tets = generate("beam_crack", a.h)
+    else:
+        points, tets = strip_graded(a.h, a.strip_edges)
     check("beam_crack", points, tets, 0)
     write_msh(a.out, points, tets)
     print(f"{a.out}: {len(points)} nodes, {len(tets)} tets")
