@@ -22,6 +22,8 @@ from common import write_json
 
 BOX = (0.03, 0.06, 0.2)
 CRACK_Z, FRONT_X = 0.1, 0.015
+# The free edges (x) of the top-face strips the `*_face` cases move, on z = 0.2.
+STRIP_EDGES = (0.005, 0.025)
 SLICE_ORIGIN = np.array([0.0, 0.0, 0.09])
 SLICE_NORMAL = np.array([-0.02, 0.0, 0.03]) / math.hypot(0.02, 0.03)
 # Growth of the element size per unit distance from the singular curves in graded meshes.
@@ -50,13 +52,19 @@ def build_geometry(family: str) -> None:
 
 
 def singular_curves(family: str) -> list[int]:
-    """The curves where the solution is singular: the crack front (beam_crack), the edges of
-    the clamped faces z = 0 and z = 0.2 (slice_precut). OCC boxes are inflated: tolerance 1e-5."""
+    """The curves where the solution is singular: the crack front and the free edges of the
+    top-face strips x = 0.005 and x = 0.025 on z = 0.2 (beam_crack), the edges of the clamped
+    faces z = 0 and z = 0.2 (slice_precut). Where the `*_face` cases' moved strip meets the free
+    top face, the solution is singular like at a crack front (r^1/2 type): ungraded there, the
+    `bend_face` reference erred 1.4 % in L2 against its own-error estimate of 0.35 %
+    (refs/README.md). OCC boxes are inflated: tolerance 1e-5."""
     found = []
     for dim, tag in gmsh.model.getEntities(1):
         x0, y0, z0, x1, y1, z1 = gmsh.model.getBoundingBox(dim, tag)
         if family == "beam_crack":
-            hit = abs(x0 - FRONT_X) < 1e-5 and abs(x1 - FRONT_X) < 1e-5 and abs(z0 - CRACK_Z) < 1e-5 and abs(z1 - CRACK_Z) < 1e-5
+            front = abs(x0 - FRONT_X) < 1e-5 and abs(x1 - FRONT_X) < 1e-5 and abs(z0 - CRACK_Z) < 1e-5 and abs(z1 - CRACK_Z) < 1e-5
+            strip = any(abs(x0 - e) < 1e-5 and abs(x1 - e) < 1e-5 for e in STRIP_EDGES) and z0 > BOX[2] - 1e-5
+            hit = front or strip
         elif family == "slice_precut":
             hit = z1 < 1e-5 or z0 > BOX[2] - 1e-5
         else:
