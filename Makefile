@@ -49,12 +49,16 @@ SWEEP_CSV := reports/data/sweep_series.csv
 # Tet4 solves against the references (about 10 minutes).
 RAMP_CASES := gravity stretch_face bend_face stretch
 RAMP_CSV := reports/data/ramp_span.csv
+# The tip front beside remeshed FEM on one mesh per level, uniform and graded at the face cases'
+# strip edges (`examples/error_map.rs one-mesh`, 20 static solves, about 2 minutes).
+ONE_MESH_CASES := bend_face stretch_face
+ONE_MESH_CSV := reports/data/one_mesh.csv
 
 # The main job: references, the convergence studies, the benches, the report. Untimed stages run
 # $(JOBS) at a time; the timed ones (the linear study, the sweep, the benches) alone after them.
 report: build
 	$(if $(wildcard refs/refs.mk),$(MAKE) refs)
-	$(MAKE) -j$(JOBS) $(CONVERGE_COROT_CSV) $(EXACT_CSV) $(STRESS_CSV) $(RAMP_CSV)
+	$(MAKE) -j$(JOBS) $(CONVERGE_COROT_CSV) $(EXACT_CSV) $(STRESS_CSV) $(RAMP_CSV) $(ONE_MESH_CSV)
 	$(MAKE) $(CONVERGE_CSV) $(SWEEP_CSV) bench-report
 	$(if $(wildcard refs/refs.mk),$(MAKE) -j$(JOBS) pictures)
 	$(CARGO) run --release -- report
@@ -94,6 +98,9 @@ $(SWEEP_CSV): target/release/xfem-cut examples/sweep_series.rs
 
 $(RAMP_CSV): target/release/xfem-cut examples/error_map.rs $(foreach c,$(RAMP_CASES),cases/$(c).toml refs/out/$(c)/manifest.json)
 	$(CARGO) run --release --example error_map -- ramp-span --csv $@
+
+$(ONE_MESH_CSV): target/release/xfem-cut examples/error_map.rs $(ONE_MESH_MESHES) $(foreach c,$(ONE_MESH_CASES),cases/$(c).toml refs/out/$(c)/manifest.json)
+	$(CARGO) run --release --example error_map -- one-mesh --csv $@
 
 bench-report: build
 	$(CARGO) bench --bench step --bench cut --bench blade -- --warm-up-time 1 --measurement-time 3

@@ -34,6 +34,7 @@ use xfem_cut::quadrature::DEGREE5;
 use xfem_cut::run::solve_scene;
 use xfem_cut::scene::{FrontMode, Scene};
 use xfem_cut::study::converge::{potential_energy, reference_of, GEOMETRIC_TIP_RADIUS};
+use xfem_cut::study::one_mesh::{self, OneMeshRow};
 use xfem_cut::study::ramp::{write_csv, RampRow};
 use xfem_cut::study::reference::{out_dir, read_reference};
 use xfem_cut::study::verify::{side_of, Field};
@@ -192,8 +193,72 @@ fn ramp_span(csv: &Path) {
     eprintln!("wrote {}", csv.display());
 }
 
+/// The one-mesh comparison's meshes (`refs/out/meshes/<family>/L<k>.msh`,
+/// written by `refs/crack_mesh_uncut.py`, `make report`), its cases and
+/// levels per element.
+const ONE_MESH_FAMILIES: [(&str, &str); 2] = [
+    ("uniform", "beam_crack_shared"),
+    ("strip edges", "beam_crack_shared_strips"),
+];
+const ONE_MESH_CASES: [&str; 2] = ["bend_face", "stretch_face"];
+const ONE_MESH_LEVELS: [(ElementKind, &[usize]); 2] = [
+    (ElementKind::Tet4, &[1, 2, 3]),
+    (ElementKind::Tet10, &[1, 2]),
+];
+
+/// Every case, mesh family, element and level of the one-mesh comparison,
+/// the extended front (FEM on that mesh) and the tip front; rows to `csv`
+/// (whole, at the end).
+fn one_mesh(csv: &Path) {
+    let cases = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
+    let mut rows = Vec::new();
+    for case in ONE_MESH_CASES {
+        let mut scene = Scene::load(&cases.join(format!("{case}.toml"))).expect("case");
+        for (mesh, family) in ONE_MESH_FAMILIES {
+            let dir = out_dir().join("meshes").join(family);
+            for (element, levels) in ONE_MESH_LEVELS {
+                scene.element = element;
+                for &level in levels {
+                    for (variant, name) in [("extend", "FEM"), ("tip", "tip")] {
+                        let c = compare(scene.clone(), variant, level, 0.0, None, Some(&dir), None);
+                        eprintln!(
+                            "{case} {mesh} {} L{level} {name}: {} DOFs, L2 {:.4e}, Π {:.8e} J (reference's {:.8e} J)",
+                            element.name(),
+                            c.dofs,
+                            c.l2,
+                            c.energy,
+                            c.reference_energy
+                        );
+                        rows.push(OneMeshRow {
+                            case: case.to_string(),
+                            mesh: mesh.to_string(),
+                            element: element.name().to_string(),
+                            level,
+                            variant: name.to_string(),
+                            dofs: c.dofs,
+                            l2_rel: c.l2,
+                            potential_energy_j: c.energy,
+                            reference_energy_j: c.reference_energy,
+                        });
+                    }
+                }
+            }
+        }
+    }
+    one_mesh::write_csv(csv, &rows).expect("writing the CSV");
+    eprintln!("wrote {}", csv.display());
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
+    if args.first().is_some_and(|a| a == "one-mesh") {
+        let csv = match args.get(1..) {
+            Some([flag, path, ..]) if flag == "--csv" => path.clone(),
+            _ => "reports/data/one_mesh.csv".to_string(),
+        };
+        one_mesh(Path::new(&csv));
+        return;
+    }
     if args.first().is_some_and(|a| a == "ramp-span") {
         let csv = match args.get(1..) {
             Some([flag, path, ..]) if flag == "--csv" => path.clone(),
@@ -203,7 +268,7 @@ fn main() {
         return;
     }
     let [case, variant, level, ..] = args.as_slice() else {
-        eprintln!("usage: error_map CASE fem|tip|extend|geo LEVEL [tet10] [R=m] [ramp=on|off] [mesh=DIR] [ref=FILE] | ramp-span [--csv FILE]");
+        eprintln!("usage: error_map CASE fem|tip|extend|geo LEVEL [tet10] [R=m] [ramp=on|off] [mesh=DIR] [ref=FILE] | ramp-span [--csv FILE] | one-mesh [--csv FILE]");
         std::process::exit(2);
     };
     let level: usize = level.parse().expect("level");

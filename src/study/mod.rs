@@ -15,6 +15,7 @@
 pub mod converge;
 pub mod exact;
 pub mod fixtures;
+pub mod one_mesh;
 pub mod ramp;
 pub mod reference;
 pub mod report;
