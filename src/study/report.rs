@@ -1487,7 +1487,7 @@ mod tests {
 
     /// `bend_face` (the top strip pushed over and down): tip enrichment opens
     /// the cut closer to the reference than the extended front at every level
-    /// (Tet4 and Tet10), and Tet4's closer than remeshed FEM's too (4–8× from
+    /// (Tet4 and Tet10), and Tet4's closer than remeshed FEM's too (2.9–5.3× from
     /// L1 on). Against the reference graded towards the strip's free edge
     /// as well (refs/README.md, "Why the strip edges are graded") remeshed
     /// FEM's Tet10 opening is the closer from L1 on, and the extended front's
