@@ -249,22 +249,24 @@ fn one_mesh(csv: &Path) {
     eprintln!("wrote {}", csv.display());
 }
 
+/// A study `make report` runs: its name, its CSV's default path, the run.
+type Study = (&'static str, &'static str, fn(&Path));
+
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    if args.first().is_some_and(|a| a == "one-mesh") {
+    let studies: [Study; 2] = [
+        ("ramp-span", "reports/data/ramp_span.csv", ramp_span),
+        ("one-mesh", "reports/data/one_mesh.csv", one_mesh),
+    ];
+    if let Some((_, default, run)) = studies
+        .iter()
+        .find(|(name, ..)| args.first().is_some_and(|a| a == name))
+    {
         let csv = match args.get(1..) {
-            Some([flag, path, ..]) if flag == "--csv" => path.clone(),
-            _ => "reports/data/one_mesh.csv".to_string(),
+            Some([flag, path, ..]) if flag == "--csv" => path.as_str(),
+            _ => default,
         };
-        one_mesh(Path::new(&csv));
-        return;
-    }
-    if args.first().is_some_and(|a| a == "ramp-span") {
-        let csv = match args.get(1..) {
-            Some([flag, path, ..]) if flag == "--csv" => path.clone(),
-            _ => "reports/data/ramp_span.csv".to_string(),
-        };
-        ramp_span(Path::new(&csv));
+        run(Path::new(csv));
         return;
     }
     let [case, variant, level, ..] = args.as_slice() else {
