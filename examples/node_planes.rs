@@ -1,7 +1,7 @@
 //! The exact solutions on cuts and fronts through nodes: where a grid-aligned
 //! incision puts them, and where three defects hid (the ramp on a node
 //! layer, a front through a node, the traction on cut faces that are
-//! element faces; README, "What the report says").
+//! element faces; README, "Engineering notes").
 //!
 //! Part 1, the near-front Williams field (`study::exact::WilliamsFront`) on
 //! 14 planes and fronts of the structured unit box: node layers in x, y, z;
