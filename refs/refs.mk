@@ -39,7 +39,12 @@ oblique: build refs-env
 # Pictures (headless): X-FEM structured level 2 Tet4 with its cut opened beside the graded
 # reference, reports/pictures/<case>.png; remade when the solver, the case or the reference changed.
 PICTURE_CASES := gravity stretch bend stretch_face bend_face slice
-pictures: $(foreach c,$(PICTURE_CASES),reports/pictures/$(c).png)
+pictures: $(foreach c,$(PICTURE_CASES),reports/pictures/$(c).png) reports/pictures/cut_progressive_sweep.png
+
+# The blade of `cut_progressive` as it cuts: five frames of its level-1 `.pvd` series.
+reports/pictures/cut_progressive_sweep.png: target/release/xfem-cut cases/cut_progressive.toml refs/sweep_pictures.py refs/pictures.py
+	target/release/xfem-cut run cases/cut_progressive.toml --level 1 --out out/pictures/cut_progressive >/dev/null
+	cd refs && $(REFS_PY) sweep_pictures.py cut_progressive ../out/pictures/cut_progressive/result.pvd ../$@
 
 reports/pictures/%.png: target/release/xfem-cut cases/%.toml refs/pictures.py refs/own_error.py refs/out/%/manifest.json
 	target/release/xfem-cut run cases/$*.toml --level 2 --out out/pictures/$* >/dev/null

@@ -753,6 +753,12 @@ fn sweep_section(reports: &Path) -> Result<Option<String>, StudyError> {
         .map(|w| w[0].event_seconds + w[1].step_seconds)
         .collect());
     let mut md = String::from("## Cutting while it runs: the cost of a sweep\n\n");
+    if reports.join(SWEEP_PICTURE).exists() {
+        let _ = writeln!(
+            md,
+            "![cut_progressive: the blade and the cut opening behind it]({SWEEP_PICTURE})\n\n`cases/cut_progressive.toml` at level 1 (Tet4, tip front, linear, damped): five frames of `xfem-cut run`'s `.pvd` series at true scale, the blade's edge in red where it is (its `.vtu` line cell, moved with the body), the cut's faces drawn as the sub-tets of the elements it cuts, each displaced by its own side (`make pictures`, `refs/sweep_pictures.py`). The cut opens behind the edge and nowhere ahead of it; after the sweep (0.6 s) the damped beam settles with the cut open.\n"
+        );
+    }
     let _ = writeln!(
         md,
         "The seed's beam cut by a blade that sweeps the seed's cut during [0.1, 0.6] s (`examples/sweep_series.rs`, front extended through the elements it is in, linear Tet4, dt = 0.01 s): {} steps, {} cut events; median step {:.3} ms, median event with the step after it {:.3} ms ({:.1}×). Each event updates the model where the cut changed (`Model::update_cut`); where it only appended equations (here: every event) the steps after it solve on the last factor through a bordered solve (the Schur complement of the new equations; Woodbury where old equations changed) instead of refactorising (`solve::BorderedSolve`; refactorised once the border's steps have cost a factorisation, `dynamics::refresh_after`), so the step after an event holds the border's set-up, not a symbolic and numeric factorisation. `examples/sweep_series.rs refactorise` gives the refactorising run for comparison. Measured on the machine that wrote the CSV (2 shared cores: rough).\n\n![step time against simulated time, events marked](sweep_series.svg)\n",
@@ -765,6 +771,10 @@ fn sweep_section(reports: &Path) -> Result<Option<String>, StudyError> {
     md.push_str(&sweep_phases(reports, &rows)?);
     Ok(Some(md))
 }
+
+/// The frames of `cut_progressive` as its blade cuts (`make pictures`,
+/// `refs/sweep_pictures.py`), relative to `reports/`.
+const SWEEP_PICTURE: &str = "pictures/cut_progressive_sweep.png";
 
 /// The sweep series of `examples/sweep_series.rs` the report knows: file
 /// stem (in `data/`), front, formulation.
@@ -1921,6 +1931,16 @@ mod tests {
             "{md}"
         );
         assert!(md.contains("(sweep_series.svg)"));
+        // The frames of the blade appear where `make pictures` drew them.
+        assert!(!md.contains(SWEEP_PICTURE));
+        std::fs::create_dir_all(dir.path().join("pictures")).unwrap();
+        std::fs::write(dir.path().join(SWEEP_PICTURE), b"png").unwrap();
+        let with = sweep_section(dir.path()).unwrap().expect("a section");
+        assert!(with.contains(&format!("]({SWEEP_PICTURE})")));
+        assert!(Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("reports")
+            .join(SWEEP_PICTURE)
+            .exists());
         let svg = std::fs::metadata(dir.path().join("sweep_series.svg")).unwrap();
         assert!(svg.len() > 1000);
         assert!(sweep_section(&dir.path().join("nothing"))
