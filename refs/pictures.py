@@ -81,6 +81,14 @@ def draw(ax, verts: np.ndarray, values: np.ndarray, norm, cmap, title: str, lo: 
     ax.set_title(title, fontsize=10)
 
 
+def save(fig, out: Path) -> None:
+    """Writes the figure whole or not at all (a temporary file renamed onto `out`)."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_suffix(".tmp.png")
+    fig.savefig(tmp)
+    tmp.replace(out)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("case")
@@ -127,10 +135,7 @@ def main() -> None:
     fig.colorbar(cm.ScalarMappable(norm=n1, cmap=cm.magma), ax=ax1, shrink=0.6, label="|u - u_ref| (mm)")
     fig.colorbar(cm.ScalarMappable(norm=n2, cmap=cm.viridis), ax=ax2, shrink=0.6, label="|u| (mm)")
     fig.suptitle(a.title or a.case)
-    a.out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = a.out.with_suffix(".tmp.png")
-    fig.savefig(tmp)
-    tmp.replace(a.out)
+    save(fig, a.out)
     print(f"{a.out}: {len(tri)} X-FEM faces (max |u - u_ref| {err.max():.3g} mm), {len(rtri)} reference faces (max |u| {ref_mag.max():.3g} mm)")
 
 

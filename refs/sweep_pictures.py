@@ -26,7 +26,7 @@ import numpy as np  # noqa: E402
 from matplotlib import cm, colors  # noqa: E402
 
 from common import load_case  # noqa: E402
-from pictures import box_of, draw, on_surface, surface  # noqa: E402
+from pictures import box_of, draw, on_surface, save, surface  # noqa: E402
 
 
 def frames(pvd: Path) -> list[tuple[float, Path]]:
@@ -109,10 +109,7 @@ def main() -> None:
     fig.colorbar(cm.ScalarMappable(norm=norm, cmap=cm.viridis), cax=bar, label="|u| (mm)")
     scale = "true scale" if a.scale == 1.0 else f"displacements ×{a.scale:g}"
     fig.suptitle(a.title or f"{case.get('name', a.case)}: the blade (red) and the cut opening behind it ({scale})")
-    a.out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = a.out.with_suffix(".tmp.png")
-    fig.savefig(tmp)
-    tmp.replace(a.out)
+    save(fig, a.out)
     print(f"{a.out}: frames at t = {', '.join(f'{d[0]:.2f}' for d in drawn)} s, max |u| {top:.3g} mm ({scale})")
 
 
