@@ -25,8 +25,9 @@ import mesh
 from mesh import check, generate, write_msh
 
 
-def strip_graded(h: float, h_edge: float):
-    """`beam_crack`'s geometry meshed with size h, graded to h_edge at the strips' free edges."""
+def strip_graded(h: float, h_edge: float, front: bool = False):
+    """`beam_crack`'s geometry meshed with size h, graded to h_edge at the strips' free edges (and
+    at the crack front too with `front`)."""
     gmsh.initialize()
     try:
         gmsh.option.setNumber("General.Terminal", 0)
@@ -41,6 +42,10 @@ def strip_graded(h: float, h_edge: float):
                 edges.append(tag)
         if len(edges) != len(mesh.STRIP_EDGES):
             raise RuntimeError(f"found {len(edges)} strip edges, expected {len(mesh.STRIP_EDGES)}")
+        if front:
+            edges = mesh.singular_curves("beam_crack")
+            if len(edges) != len(mesh.STRIP_EDGES) + 1:
+                raise RuntimeError(f"found {len(edges)} singular curves, expected the strip edges and the front")
         gmsh.option.setNumber("Mesh.MeshSizeMax", h)
         gmsh.option.setNumber("Mesh.MeshSizeMin", 0.2 * h_edge)
         gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
@@ -69,11 +74,15 @@ def main() -> None:
     ap.add_argument("out", type=Path)
     ap.add_argument("--strip-edges", type=float, metavar="HS",
                     help="grade towards the strips' free edges to size HS (m) instead of meshing uniformly")
+    ap.add_argument("--front", action="store_true",
+                    help="with --strip-edges: grade towards the crack front too, to the same size")
     a = ap.parse_args()
+    if a.front and a.strip_edges is None:
+        raise SystemExit("error: --front grades as --strip-edges HS does: give HS")
     if a.strip_edges is None:
         points, tets = generate("beam_crack", a.h)
     else:
-        points, tets = strip_graded(a.h, a.strip_edges)
+        points, tets = strip_graded(a.h, a.strip_edges, a.front)
     check("beam_crack", points, tets, 0)
     write_msh(a.out, points, tets)
     print(f"{a.out}: {len(points)} nodes, {len(tets)} tets")
