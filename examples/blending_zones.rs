@@ -20,11 +20,16 @@
 //! grows, so the zones do not compare level to level exactly), and the
 //! standard elements' 1.10e-2 / 5.82e-3 / 3.55e-3. The one-element ramp
 //! moves the error into its blending layer (n = 12: 64 %) and leaves the
-//! order (`tests/front.rs blending_measure_tet10`). Not the quadrature:
+//! order (`tests/front.rs blending_measure_tet10`). The quadrature in part:
 //! with the Tet10 front cells' collapsed rules 5 → 8 points a direction, the
 //! polar rule's (4, 3) → (7, 5) and the cells near the front red-refined 3
 //! deep out to twice their size (1 deep out to half), the energy errors at
-//! n = 8 and 12 moved by under 0.4 %. What limits Tet10 is not settled.
+//! n = 8 and 12 moved by under 0.4 %, at n = 16 and 20 by 1.4 and 3.5 %
+//! (7.87e-3 → 7.76e-3, 5.40e-3 → 5.21e-3; the last order 1.69 → 1.79). With
+//! every node enriched (R = 10), where the field lies in the space, the solve
+//! errs 1.5e-3 … 2.2e-3 in energy at n = 4 and 6 (Tet4 and Tet10) against 1e-12 for
+//! the field's own DOFs: the rules' consistency error, 2.7e-4 … 4.2e-4 with
+//! the rules above. What limits Tet10 is not settled.
 //!
 //! `cargo run --release --example blending_zones -- N R [tet4|tet10] [ramp|none]`
 //! (e.g. `12 0.2 tet10`: 2 s).
