@@ -828,3 +828,30 @@ fn a_node_no_tetrahedron_uses_is_left_out() {
     );
     assert!(!without_plan.contains("left out"), "{without_plan}");
 }
+
+/// `converge` on a case the reference pipeline does not know (a temp case
+/// named after none of refs/make_refs.py's) ends with one line naming the
+/// case file and where references come from, and a non-zero exit, before it
+/// solves anything.
+#[test]
+fn converge_without_a_reference_says_where_references_come_from() {
+    let dir = tempfile::tempdir().unwrap();
+    let case = dir.path().join("no_reference_case.toml");
+    std::fs::write(
+        &case,
+        GOOD.replace("name = \"tiny\"", "name = \"no_reference_case\""),
+    )
+    .unwrap();
+    let out = Command::new(bin())
+        .args(["converge", case.to_str().unwrap(), "--csv"])
+        .arg(dir.path().join("rows.csv"))
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(err.contains("no_reference_case.toml"), "{err}");
+    assert!(err.contains("refs/make_refs.py"), "{err}");
+    assert!(!dir.path().join("rows.csv").exists());
+}

@@ -213,7 +213,7 @@ pub fn converge_case(
     let base = Scene::load(case_path)?;
     let (family, ref_path) = reference_of(&base.name).ok_or_else(|| {
         StudyError::Precondition(format!(
-            "{}: no fine reference in refs/out/{}/*_fine/p2.vtu (run `make refs`)",
+            "{}: no fine reference in refs/out/{}/*_fine/p2.vtu (`make refs` makes them for the cases refs/make_refs.py names in FAMILY, the seed's beam; another case has none to converge against)",
             case_path.display(),
             base.name
         ))
