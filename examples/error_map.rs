@@ -195,10 +195,14 @@ fn ramp_span(csv: &Path) {
 
 /// The one-mesh comparison's meshes (`refs/out/meshes/<family>/L<k>.msh`,
 /// written by `refs/crack_mesh_uncut.py`, `make report`), its cases and
-/// levels per element.
-const ONE_MESH_FAMILIES: [(&str, &str); 2] = [
+/// levels per element. The last holds no crack (X-FEM's front inside
+/// elements, as in the study's X-FEM rows): the tip front alone runs there,
+/// beside the FEM run on the crack mesh graded alike
+/// ([`one_mesh::fem_mesh`]).
+const ONE_MESH_FAMILIES: [(&str, &str); 3] = [
     ("uniform", "beam_crack_shared"),
     ("strip edges", "beam_crack_shared_strips"),
+    (one_mesh::UNCUT_STRIPS, "beam_uncut_strips"),
 ];
 const ONE_MESH_CASES: [&str; 2] = ["bend_face", "stretch_face"];
 const ONE_MESH_LEVELS: [(ElementKind, &[usize]); 2] = [
@@ -207,8 +211,8 @@ const ONE_MESH_LEVELS: [(ElementKind, &[usize]); 2] = [
 ];
 
 /// Every case, mesh family, element and level of the one-mesh comparison,
-/// the extended front (FEM on that mesh) and the tip front; rows to `csv`
-/// (whole, at the end).
+/// the extended front (FEM on that mesh) and the tip front (the tip front
+/// alone on the uncut mesh); rows to `csv` (whole, at the end).
 fn one_mesh(csv: &Path) {
     let cases = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
     let mut rows = Vec::new();
@@ -219,7 +223,12 @@ fn one_mesh(csv: &Path) {
             for (element, levels) in ONE_MESH_LEVELS {
                 scene.element = element;
                 for &level in levels {
-                    for (variant, name) in [("extend", "FEM"), ("tip", "tip")] {
+                    let variants: &[(&str, &str)] = if mesh == one_mesh::UNCUT_STRIPS {
+                        &[("tip", "tip")]
+                    } else {
+                        &[("extend", "FEM"), ("tip", "tip")]
+                    };
+                    for &(variant, name) in variants {
                         let c = compare(scene.clone(), variant, level, 0.0, None, Some(&dir), None);
                         eprintln!(
                             "{case} {mesh} {} L{level} {name}: {} DOFs, L2 {:.4e}, Π {:.8e} J (reference's {:.8e} J)",

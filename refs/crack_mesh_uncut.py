@@ -10,9 +10,13 @@ With --strip-edges HS the mesh is graded towards the free edges of the `*_face` 
 strips (x = 0.005 and x = 0.025 on z = 0.2; size HS there, growing as mesh.py grades), not towards
 the crack front: the strip edge is a second singular line of those cases, and resolving it in the
 mesh shows the crack treatments apart (refs/README.md, "Why the strip edges are graded").
+With --uncut as well, the body is meshed without the crack (`mesh.py beam_uncut`'s geometry,
+graded the same way): the study's setting, X-FEM's front inside elements, beside remeshed FEM
+on the crack mesh graded alike.
 
     /usr/bin/python3 refs/crack_mesh_uncut.py 0.006 OUT/L2.msh   # h of the level: out/meshes/beam_crack/L2.json
     /usr/bin/python3 refs/crack_mesh_uncut.py 0.006 OUT/L2.msh --strip-edges 0.0015
+    /usr/bin/python3 refs/crack_mesh_uncut.py 0.006 OUT/L2.msh --strip-edges 0.0015 --uncut
 """
 from __future__ import annotations
 
@@ -25,16 +29,16 @@ import mesh
 from mesh import check, generate, write_msh
 
 
-def strip_graded(h: float, h_edge: float, front: bool = False):
-    """`beam_crack`'s geometry meshed with size h, graded to h_edge at the strips' free edges (and
-    at the crack front too with `front`)."""
+def strip_graded(h: float, h_edge: float, front: bool = False, family: str = "beam_crack"):
+    """`family`'s geometry (`beam_crack`, or `beam_uncut`: no crack) meshed with size h, graded to
+    h_edge at the strips' free edges (and at the crack front too with `front`)."""
     gmsh.initialize()
     try:
         gmsh.option.setNumber("General.Terminal", 0)
         gmsh.option.setNumber("General.NumThreads", 1)
         gmsh.option.setNumber("Mesh.RandomSeed", 1)
-        gmsh.model.add("beam_crack_strips")
-        mesh.build_geometry("beam_crack")
+        gmsh.model.add(f"{family}_strips")
+        mesh.build_geometry(family)
         edges = []
         for dim, tag in gmsh.model.getEntities(1):
             x0, _, z0, x1, _, _ = gmsh.model.getBoundingBox(dim, tag)
@@ -76,14 +80,19 @@ def main() -> None:
                     help="grade towards the strips' free edges to size HS (m) instead of meshing uniformly")
     ap.add_argument("--front", action="store_true",
                     help="with --strip-edges: grade towards the crack front too, to the same size")
+    ap.add_argument("--uncut", action="store_true",
+                    help="with --strip-edges: mesh the body without the crack (beam_uncut's geometry)")
     a = ap.parse_args()
     if a.front and a.strip_edges is None:
         raise SystemExit("error: --front grades as --strip-edges HS does: give HS")
+    if a.uncut and (a.strip_edges is None or a.front):
+        raise SystemExit("error: --uncut grades at the strip edges only: give --strip-edges HS, not --front")
+    family = "beam_uncut" if a.uncut else "beam_crack"
     if a.strip_edges is None:
-        points, tets = generate("beam_crack", a.h)
+        points, tets = generate(family, a.h)
     else:
-        points, tets = strip_graded(a.h, a.strip_edges, a.front)
-    check("beam_crack", points, tets, 0)
+        points, tets = strip_graded(a.h, a.strip_edges, a.front, family)
+    check(family, points, tets, 0)
     write_msh(a.out, points, tets)
     print(f"{a.out}: {len(points)} nodes, {len(tets)} tets")
 

@@ -8,7 +8,10 @@
 //! gmsh's crack mesh with the crack's nodes shared (`refs/crack_mesh_uncut.py`:
 //! X-FEM's extended front there is remeshed FEM to the last digit), uniform
 //! and graded to h/4 at the strip edges, with the extended front ("FEM") and
-//! the tip front, and writes one row per run against the FEniCSx reference.
+//! the tip front, and the tip front on the body meshed without the crack and
+//! graded alike ([`UNCUT_STRIPS`]: the front inside elements, the study's
+//! setting for X-FEM, beside FEM on the graded crack mesh), and writes one
+//! row per run against the FEniCSx reference.
 
 use crate::io::IoError;
 use serde::{Deserialize, Serialize};
@@ -18,11 +21,25 @@ use std::path::Path;
 /// The CSV `examples/error_map.rs one-mesh` writes, in `reports/`.
 pub const CSV: &str = "data/one_mesh.csv";
 
+/// The mesh of the tip front's runs on the body meshed without the crack,
+/// graded to h/4 at the strip edges (`refs/crack_mesh_uncut.py --uncut`);
+/// their FEM is the run on the crack mesh graded alike ("strip edges").
+pub const UNCUT_STRIPS: &str = "strip edges, uncut";
+
+/// The mesh of the FEM run a run on `mesh` is set beside.
+pub fn fem_mesh(mesh: &str) -> &str {
+    if mesh == UNCUT_STRIPS {
+        "strip edges"
+    } else {
+        mesh
+    }
+}
+
 /// One run on one mesh.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct OneMeshRow {
     pub case: String,
-    /// "uniform" or "strip edges" (graded to h/4 there).
+    /// "uniform", "strip edges" (graded to h/4 there) or [`UNCUT_STRIPS`].
     pub mesh: String,
     pub element: String,
     pub level: usize,
@@ -61,20 +78,21 @@ impl Pair<'_> {
     }
 }
 
-/// The rows paired by case, mesh, element and level (in the rows' order).
+/// Each tip run with the FEM run of its case, element and level on its
+/// mesh ([`fem_mesh`]), in the tip runs' order.
 pub fn pairs(rows: &[OneMeshRow]) -> Vec<Pair<'_>> {
     rows.iter()
-        .filter(|r| r.variant == "FEM")
-        .filter_map(|fem| {
+        .filter(|r| r.variant == "tip")
+        .filter_map(|tip| {
             rows.iter()
                 .find(|r| {
-                    r.variant == "tip"
-                        && r.case == fem.case
-                        && r.mesh == fem.mesh
-                        && r.element == fem.element
-                        && r.level == fem.level
+                    r.variant == "FEM"
+                        && r.case == tip.case
+                        && r.mesh == fem_mesh(&tip.mesh)
+                        && r.element == tip.element
+                        && r.level == tip.level
                 })
-                .map(|tip| Pair { fem, tip })
+                .map(|fem| Pair { fem, tip })
         })
         .collect()
 }
@@ -89,14 +107,14 @@ pub fn section(reports: &Path) -> Result<Option<String>, IoError> {
     let mut md = String::from(
         "## One mesh: the tip front beside remeshed FEM, the strip edges resolved or not\n\n",
     );
-    md.push_str("`bend_face` and `stretch_face` move a strip of the top face; where it meets the free face (x = 0.025 or 0.005, z = 0.2) the solution is singular like at a crack front. The study's levels leave that edge at their size; there remeshed FEM's too-stiff crack offsets the edge's too-stiff error, which on `bend_face` ranks it ahead of the tip front in L2. Here both run on one mesh per level: gmsh's crack mesh with the crack's nodes shared (`refs/crack_mesh_uncut.py`; FEM is X-FEM's extended front on it, equal to remeshed FEM to the last digit), uniform as the level or graded to h/4 at the strip edges (`--strip-edges`), against the same reference (`examples/error_map.rs one-mesh`). Grading the edge lowers every run's Π; the L2 ratio is the tip front's error over FEM's.\n\n");
+    md.push_str("`bend_face` and `stretch_face` move a strip of the top face; where it meets the free face (x = 0.025 or 0.005, z = 0.2) the solution is singular like at a crack front. The study's levels leave that edge at their size; there remeshed FEM's too-stiff crack offsets the edge's too-stiff error, which on `bend_face` ranks it ahead of the tip front in L2. Here both run on one mesh per level: gmsh's crack mesh with the crack's nodes shared (`refs/crack_mesh_uncut.py`; FEM is X-FEM's extended front on it, equal to remeshed FEM to the last digit), uniform as the level or graded to h/4 at the strip edges (`--strip-edges`), against the same reference (`examples/error_map.rs one-mesh`). The rows on the mesh \"strip edges, uncut\" are the study's setting with the edge resolved: the tip front on the body meshed without the crack and graded alike (`--strip-edges … --uncut`), its front inside elements, beside remeshed FEM on the graded crack mesh (the FEM of the \"strip edges\" rows). Grading the edge lowers every run's Π; the L2 ratio is the tip front's error over FEM's.\n\n");
     md.push_str("| case | mesh | element | level | DOFs: FEM / tip | L2: FEM / tip | L2 ratio | Π: FEM / tip (J) | reference Π (J) |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
     for p in pairs(&rows) {
         let _ = writeln!(
             md,
             "| `{}` | {} | {} | L{} | {} / {} | {:.2} % / {:.2} % | {:.2} | {:.5} / {:.5} | {:.5} |",
             p.fem.case,
-            p.fem.mesh,
+            p.tip.mesh,
             p.fem.element,
             p.fem.level,
             p.fem.dofs,
@@ -139,11 +157,19 @@ mod tests {
             row("strip edges", "FEM", 0.02),
             row("strip edges", "tip", 0.005),
             row("strip edges", "FEM", 0.02),
+            row(UNCUT_STRIPS, "tip", 0.004),
         ];
+        let mut alone = row("uniform", "tip", 0.5);
+        alone.level = 2;
+        let rows = [rows, vec![alone]].concat();
         let p = pairs(&rows);
+        // The last tip run has no FEM run at its level: not paired.
         assert_eq!(p.len(), 3);
         assert!((p[0].l2_ratio() - 3.0).abs() < 1e-12);
         assert!((p[1].l2_ratio() - 0.25).abs() < 1e-12);
+        // The uncut mesh's run beside FEM on the crack mesh graded alike.
+        assert_eq!(p[2].fem.mesh, "strip edges");
+        assert!((p[2].l2_ratio() - 0.2).abs() < 1e-12);
         let dir = tempfile::tempdir().unwrap();
         std::fs::create_dir(dir.path().join("data")).unwrap();
         assert!(section(dir.path()).unwrap().is_none());
@@ -151,5 +177,9 @@ mod tests {
         let md = section(dir.path()).unwrap().unwrap();
         assert_eq!(md.lines().filter(|l| l.starts_with("| `")).count(), 3);
         assert!(md.contains("| 1.00 % / 3.00 % | 3.00 |"), "{md}");
+        assert!(
+            md.contains("| strip edges, uncut | tet10 | L1 | 100 / 100 | 2.00 % / 0.40 % | 0.20 |"),
+            "{md}"
+        );
     }
 }
