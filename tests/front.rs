@@ -2371,3 +2371,94 @@ fn a_scene_in_milliseconds_solves_as_in_seconds() {
         assert_eq!(worst, 0.0, "{name}: {:e}", worst / largest);
     }
 }
+
+/// What limits Tet10's geometric rates (`examples/blending_zones.rs`): the
+/// field's nodal interpolant (`WilliamsFront::interpolant`) is the field
+/// itself in the elements all of whose vertices are tip-enriched, and in the
+/// one-element blending layer, where the partial partition of unity
+/// Σ_{k∈I} λ_k (gradient ~ 1/h) multiplies the branch functions, its energy
+/// error converges at about 1.5, not the 2 of quadratic elements (measured
+/// 1.43 from n = 8 to 12, 1.40 to 16). The one-element ramp of corrected
+/// X-FEM, linear too, leaves that interpolant unchanged: the two spaces hold
+/// the same function (their Galerkin solutions differ: the ramp frees the
+/// ring's DOFs).
+#[test]
+fn tet10_blending_layer_interpolant_converges_at_about_one_and_a_half() {
+    let fr = Front::new();
+    let patch = fr.patch();
+    let lame = Lame::from(MATERIAL);
+    // Per zone (all vertices in I, some, none): the interpolant's energy error².
+    let zones = |n: usize, blending: Blending| -> ([f64; 3], f64, Vec<f64>) {
+        let mesh = mesh(n, ElementKind::Tet10, 0.0);
+        let input = CutInput {
+            blending,
+            ..CutInput::tip(&patch, 1e-3, Some(0.2))
+        };
+        let cut = setup_cut(&mesh, &[input]).unwrap();
+        let in_i = |i: usize| {
+            if cut.ramp.is_empty() {
+                cut.tip[i].is_some()
+            } else {
+                cut.ramp[i]
+            }
+        };
+        let kinds: Vec<usize> = (0..mesh.n_elements())
+            .map(
+                |e| match mesh.vertices(e).iter().filter(|&&i| in_i(i)).count() {
+                    4 => 0,
+                    0 => 2,
+                    _ => 1,
+                },
+            )
+            .collect();
+        let fixed = boundary_values(&fr, &mesh, &cut);
+        let model = xfem_cut::study::exact::linear_model(mesh, Some(cut), fixed).unwrap();
+        let cut = model.cut.as_ref().unwrap();
+        let d = fr.interpolant(&model.mesh, cut, model.n_shape);
+        let (mut err, mut norm) = ([0.0; 3], 0.0);
+        for (e, &zone) in kinds.iter().enumerate() {
+            for (x, w, side) in model.field_points(e) {
+                let (_, gi) = model.field_at(&d, e, &x, side);
+                let (_, g) = fr.exact(&x, side);
+                err[zone] += w * xfem_cut::study::exact::energy_density(&(gi - g), &lame);
+                norm += w * xfem_cut::study::exact::energy_density(&g, &lame);
+            }
+        }
+        let sampled: Vec<f64> = (0..model.mesh.n_elements())
+            .step_by(7)
+            .flat_map(|e| {
+                model
+                    .field_points(e)
+                    .into_iter()
+                    .take(3)
+                    .map(|(x, _, side)| model.field_at(&d, e, &x, side).0.norm())
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        (err.map(|e| (e / norm).sqrt()), norm, sampled)
+    };
+    let (coarse, _, _) = zones(8, Blending::None);
+    let (fine, _, plain) = zones(12, Blending::None);
+    eprintln!("interpolant energy errors (enriched, blending, standard): n = 8 {coarse:?}, n = 12 {fine:?}");
+    assert!(
+        coarse[0] < 1e-10 && fine[0] < 1e-10,
+        "exact where every vertex is in I"
+    );
+    let order = (coarse[1] / fine[1]).ln() / 1.5f64.ln();
+    assert!(
+        (1.2..1.7).contains(&order),
+        "blending layer: order {order:.2}"
+    );
+    // The ramp's space holds the same interpolant.
+    let (ramped, _, ramped_values) = zones(12, Blending::Ramp);
+    let largest = fine.iter().fold(0.0f64, |m, &e| m.max(e));
+    for (a, b) in ramped.iter().zip(&fine) {
+        assert!(
+            (a - b).abs() <= 1e-9 * largest,
+            "{ramped:?} against {fine:?}"
+        );
+    }
+    for (a, b) in ramped_values.iter().zip(&plain) {
+        assert!((a - b).abs() <= 1e-12 * b.max(1.0));
+    }
+}

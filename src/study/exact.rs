@@ -474,55 +474,81 @@ impl WilliamsFront {
         mesh: &TetMesh,
         cut: &CutSetup,
     ) -> Vec<(usize, [Option<f64>; 3])> {
-        let n_nodes = mesh.n_nodes();
         let edges = mid_edges(mesh);
         let mut fixed = Vec::new();
         for (i, p) in mesh.nodes.iter().enumerate() {
-            if !on_boundary(p) {
-                continue;
-            }
-            let side = cut.node_side[i];
-            let u = self.standard_value(mesh, cut, &edges, i);
-            fixed.push((i, u.map(Some).into()));
-            if let Some(j) = cut.enriched[i] {
-                // a = H (u_own − u_other − (T_own − T_other)): the jump the
-                // Heaviside DOF must add to what the tip functions of a
-                // mid-node's tip-enriched edge vertices already jump there,
-                // ½ (F(+) − F(−)) b each. u_other = −u_own for this field, so
-                // a = 2 H u_own (1 − k/2) with k such vertices (0 at a vertex).
-                let k = edges[i].map_or(0.0, |(a, b)| {
-                    cut.edge_tip_weight(a, b, a) + cut.edge_tip_weight(a, b, b)
+            if on_boundary(p) {
+                self.node_values(mesh, cut, &edges, i, |s, v| {
+                    fixed.push((s, v.map(Some).into()))
                 });
-                // With the ramp the node's Heaviside function makes 1 − R_i of
-                // the jump there and the tip functions (on every vertex of an
-                // element with R > 0) the rest: a = the whole jump.
-                let own = self.exact(p, side).0;
-                let share = if cut.ramp.is_empty() {
-                    1.0 - 0.5 * k
-                } else {
-                    1.0
-                };
-                let a = own * (2.0 * f64::from(side) * share);
-                fixed.push((n_nodes + j, a.map(Some).into()));
-            }
-            if let Some(t) = cut.tip[i] {
-                // (A ring node's held branch functions are zero.) The
-                // model's functions are over √h: their DOFs are b √h.
-                let held = held_branches(mesh, cut, i);
-                for k in 0..N_BRANCH {
-                    let b = if held.contains(&k) {
-                        Vector3::zeros()
-                    } else {
-                        self.b[k] / cut.tip_scale[t]
-                    };
-                    fixed.push((
-                        n_nodes + cut.n_enriched + N_BRANCH * t + k,
-                        b.map(Some).into(),
-                    ));
-                }
             }
         }
         fixed
+    }
+
+    /// The field's nodal interpolant: the DOFs ([`Self::boundary_values`]'
+    /// at every node) of all `n_shape` shape functions, 3 a shape (the
+    /// model's full DOF vector). Where every vertex of an element is
+    /// tip-enriched it is the field itself; elsewhere its error is the
+    /// space's (`examples/blending_zones.rs`).
+    pub fn interpolant(&self, mesh: &TetMesh, cut: &CutSetup, n_shape: usize) -> Vec<f64> {
+        let edges = mid_edges(mesh);
+        let mut d = vec![0.0; 3 * n_shape];
+        for i in 0..mesh.n_nodes() {
+            self.node_values(mesh, cut, &edges, i, |s, v| {
+                d[3 * s..3 * s + 3].copy_from_slice(v.as_slice())
+            });
+        }
+        d
+    }
+
+    /// The DOF values of node `i`'s shape functions that interpolate the
+    /// field, each handed to `put(shape, value)`.
+    fn node_values(
+        &self,
+        mesh: &TetMesh,
+        cut: &CutSetup,
+        edges: &[Option<(usize, usize)>],
+        i: usize,
+        mut put: impl FnMut(usize, Vector3<f64>),
+    ) {
+        let n_nodes = mesh.n_nodes();
+        let p = &mesh.nodes[i];
+        let side = cut.node_side[i];
+        put(i, self.standard_value(mesh, cut, edges, i));
+        if let Some(j) = cut.enriched[i] {
+            // a = H (u_own − u_other − (T_own − T_other)): the jump the
+            // Heaviside DOF must add to what the tip functions of a
+            // mid-node's tip-enriched edge vertices already jump there,
+            // ½ (F(+) − F(−)) b each. u_other = −u_own for this field, so
+            // a = 2 H u_own (1 − k/2) with k such vertices (0 at a vertex).
+            let k = edges[i].map_or(0.0, |(a, b)| {
+                cut.edge_tip_weight(a, b, a) + cut.edge_tip_weight(a, b, b)
+            });
+            // With the ramp the node's Heaviside function makes 1 − R_i of
+            // the jump there and the tip functions (on every vertex of an
+            // element with R > 0) the rest: a = the whole jump.
+            let own = self.exact(p, side).0;
+            let share = if cut.ramp.is_empty() {
+                1.0 - 0.5 * k
+            } else {
+                1.0
+            };
+            put(n_nodes + j, own * (2.0 * f64::from(side) * share));
+        }
+        if let Some(t) = cut.tip[i] {
+            // (A ring node's held branch functions are zero.) The
+            // model's functions are over √h: their DOFs are b √h.
+            let held = held_branches(mesh, cut, i);
+            for k in 0..N_BRANCH {
+                let b = if held.contains(&k) {
+                    Vector3::zeros()
+                } else {
+                    self.b[k] / cut.tip_scale[t]
+                };
+                put(n_nodes + cut.n_enriched + N_BRANCH * t + k, b);
+            }
+        }
     }
 }
 
@@ -751,7 +777,7 @@ impl Case {
     pub fn description(self) -> &'static str {
         match self {
             Case::ThroughCut => "A manufactured solution with a jump: on each side of the oblique plane n ∝ (0.3, 1, 0.2) through (0.5, 0.47, 0.52), which cuts the box completely, its own smooth field (+ side: sine, cubic and quadratic ridge terms; − side: exponential and sine ridge terms and an offset). Body force f = −div σ in closed form and the traction σ n_out on both cut faces from each side's field (`assembly::field_load`); on the outer boundary the standard DOFs take the own side's field and the Heaviside DOFs the jump to the other side's field, so the discrete field equals the exact one at boundary nodes from both sides. X-FEM Heaviside holds each side's interpolant: theory 2 / 1 (Tet4) and 3 / 2 (Tet10) in L2 / energy. `FEM pre-cut`: the perfectly remeshed cut, FEM on a conforming mesh of the same structured box with every element the plane crosses split along it (the nodes on the plane duplicated per side, `exact::precut_mesh`), the same loads (the traction on the faces on the plane) and the same theory.",
-            Case::NearFront => "Williams' near-front field (modes I + II in plane strain, K_I = 1, K_II = 0.7, and mode III, K_III = 0.5) around a straight front through (0.513, 0.479, 0.507) crossing the box obliquely, the crack behind it: an exact solution of 3-D linear elasticity with traction-free crack faces and no body force. Boundary values: standard DOFs the exact nodal values, Heaviside DOFs the jump the tip functions do not already make, tip DOFs the Williams coefficients (times √h: the functions are over √h). Theory: geometric tip enrichment (every node within R = 0.2 of the front) restores the smooth rates (2 / 1 for Tet4, 3 / 2 for Tet10); topological tip enrichment (the nodes of front elements) is limited by the √r singularity outside the enriched band (1 / 0.5); `extend` lengthens the cut by up to an element and has no clean rate. Tet10's geometric rows fall short of 3 / 2 and stay so deeper than the table goes (2.79 / 1.74 from n = 12 to 16, 2.68 / 1.69 to 20): the one-element ramp does not lift them, and the quadrature only in part: rules refined further (the front cells' collapsed rules 5 → 8 points a direction, the polar rule's (4, 3) → (7, 5), the cells near the front red-refined 3 deep out to twice their size) moved the energy errors by under 0.4 % at n = 8 and 12 and by 1.4 / 3.5 % at n = 16 / 20, the last order 1.69 → 1.79; `examples/blending_zones.rs` says where the error lies (the blending elements hold 66 / 56 / 48 % of it at n = 8 / 12 / 16, their part converging at about 2, the fully enriched elements' slower), and what limits the rate is not settled.",
+            Case::NearFront => "Williams' near-front field (modes I + II in plane strain, K_I = 1, K_II = 0.7, and mode III, K_III = 0.5) around a straight front through (0.513, 0.479, 0.507) crossing the box obliquely, the crack behind it: an exact solution of 3-D linear elasticity with traction-free crack faces and no body force. Boundary values: standard DOFs the exact nodal values, Heaviside DOFs the jump the tip functions do not already make, tip DOFs the Williams coefficients (times √h: the functions are over √h). Theory: geometric tip enrichment (every node within R = 0.2 of the front) restores the smooth rates (2 / 1 for Tet4, 3 / 2 for Tet10); topological tip enrichment (the nodes of front elements) is limited by the √r singularity outside the enriched band (1 / 0.5); `extend` lengthens the cut by up to an element and has no clean rate. Tet10's geometric rows fall short of 3 / 2 and stay so deeper than the table goes (2.79 / 1.74 from n = 12 to 16, 2.68 / 1.69 to 20): the one-element ramp does not lift them, and the quadrature only in part: rules refined further (the front cells' collapsed rules 5 → 8 points a direction, the polar rule's (4, 3) → (7, 5), the cells near the front red-refined 3 deep out to twice their size) moved the energy errors by under 0.4 % at n = 8 and 12 and by 1.4 / 3.5 % at n = 16 / 20, the last order 1.69 → 1.79; what limits them is the blending layer (`examples/blending_zones.rs`, `tests/front.rs` `tet10_blending_layer_interpolant_converges_at_about_one_and_a_half`): the field's nodal interpolant is the field itself in the elements all of whose vertices are tip-enriched (error 1e-12) and errs 3.27e-2 / 1.84e-2 / 1.23e-2 in energy in the one-element blending layer at n = 8 / 12 / 16 (order 1.43, 1.40), where the partial partition of unity Σ_{k∈I} λ_k, whose gradient is 1/h, multiplies the branch functions and what the quadratic functions must make up of them errs O(h^1.5) in energy; the linear one-element ramp leaves that interpolant the same function. The Galerkin solution does better than the interpolant there (its blending part converges at 1.9–2.0) by moving error into the fully enriched elements (order 1.0–1.3, 15 / 24 / 32 % of the error² at n = 8 / 12 / 16), and its last orders sit between that cap and 2. A blending function smooth over a width that does not shrink with h (cutoff-function enrichment) would lift it; it is not built.",
         }
     }
 
