@@ -238,6 +238,66 @@ fn plot(
     )
 }
 
+/// The one-mesh comparison's L2 errors against DOFs, one SVG per case
+/// (`one_mesh_<case>.svg`: a colour per mesh and variant, Tet10 thick), and
+/// the Markdown that shows them.
+pub fn one_mesh_plots(reports: &Path) -> Result<String, StudyError> {
+    use crate::study::one_mesh;
+    let rows = one_mesh::read_csv(&reports.join(one_mesh::CSV))?;
+    let mut cases: Vec<&str> = rows.iter().map(|r| r.case.as_str()).collect();
+    cases.dedup();
+    let mut md = String::new();
+    for case in cases {
+        let mut keys: Vec<(&str, &str, &str)> = Vec::new();
+        for r in rows.iter().filter(|r| r.case == case) {
+            let key = (r.mesh.as_str(), r.variant.as_str(), r.element.as_str());
+            if !keys.contains(&key) {
+                keys.push(key);
+            }
+        }
+        let mut kinds: Vec<(&str, &str)> = keys.iter().map(|&(m, v, _)| (m, v)).collect();
+        kinds.dedup();
+        let lines: Vec<Line> = keys
+            .iter()
+            .map(|&(mesh, variant, element)| Line {
+                label: format!("{variant}, {mesh} mesh, {element}"),
+                points: rows
+                    .iter()
+                    .filter(|r| {
+                        (
+                            r.case.as_str(),
+                            r.mesh.as_str(),
+                            r.variant.as_str(),
+                            r.element.as_str(),
+                        ) == (case, mesh, variant, element)
+                    })
+                    .map(|r| (r.dofs as f64, r.l2_rel))
+                    .collect(),
+                color: COLORS[kinds
+                    .iter()
+                    .position(|&k| k == (mesh, variant))
+                    .unwrap_or(0)
+                    % COLORS.len()],
+                thick: element == "tet10",
+            })
+            .collect();
+        let file = format!("one_mesh_{case}.svg");
+        draw_lines(
+            &reports.join(&file),
+            &format!("{case}: the tip front and remeshed FEM, L1–L3"),
+            "DOFs",
+            "relative L2 error",
+            &lines,
+            SeriesLabelPosition::LowerLeft,
+        )?;
+        let _ = writeln!(md, "![{case}: one mesh, L2 error against DOFs]({file})");
+    }
+    if !md.is_empty() {
+        md.push('\n');
+    }
+    Ok(md)
+}
+
 /// A log–log SVG of `lines` (points ≤ 0 left out); nothing when none is left.
 fn draw_lines(
     path: &Path,
@@ -585,6 +645,7 @@ pub fn write_report(reports: &Path, criterion_dir: &Path, machine: &str) -> Resu
     }
     if let Some(section) = crate::study::one_mesh::section(reports)? {
         md.push_str(&section);
+        md.push_str(&one_mesh_plots(reports)?);
     }
     if let Some(section) = static_section(reports)? {
         md.push_str(&section);
@@ -1669,6 +1730,28 @@ mod tests {
         );
         let readme = std::fs::read_to_string(reports.join("README.md")).unwrap();
         assert!(readme.contains("## One mesh: the tip front beside remeshed FEM"));
+    }
+
+    /// The one-mesh comparison's plots: one SVG per case from the committed
+    /// CSV, and the page's lines that show them.
+    #[test]
+    fn the_one_mesh_comparison_is_plotted_per_case() {
+        use crate::study::one_mesh;
+        let reports = Path::new(env!("CARGO_MANIFEST_DIR")).join("reports");
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir(dir.path().join("data")).unwrap();
+        std::fs::copy(reports.join(one_mesh::CSV), dir.path().join(one_mesh::CSV)).unwrap();
+        let md = one_mesh_plots(dir.path()).unwrap();
+        for case in ["bend_face", "stretch_face"] {
+            let svg =
+                std::fs::read_to_string(dir.path().join(format!("one_mesh_{case}.svg"))).unwrap();
+            assert!(svg.contains("<svg") && svg.contains("tip, strip edges, uncut mesh, tet10"));
+            assert!(md.contains(&format!("](one_mesh_{case}.svg)")), "{md}");
+            // The committed page shows it.
+            let page = std::fs::read_to_string(reports.join("README.md")).unwrap();
+            assert!(page.contains(&format!("](one_mesh_{case}.svg)")));
+            assert!(reports.join(format!("one_mesh_{case}.svg")).exists());
+        }
     }
 
     /// The committed page opens with its method and summary; what was run
