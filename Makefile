@@ -50,7 +50,8 @@ SWEEP_CSV := reports/data/sweep_series.csv
 RAMP_CASES := gravity stretch_face bend_face stretch
 RAMP_CSV := reports/data/ramp_span.csv
 # The tip front beside remeshed FEM on one mesh per level, uniform and graded at the face cases'
-# strip edges (`examples/error_map.rs one-mesh`, 20 static solves, about 2 minutes).
+# strip edges, and the tip front on the uncut body graded alike (`examples/error_map.rs one-mesh`,
+# 60 static solves, about 3.5 minutes).
 ONE_MESH_CASES := bend_face stretch_face
 ONE_MESH_CSV := reports/data/one_mesh.csv
 
