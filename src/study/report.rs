@@ -244,8 +244,12 @@ fn plot(
 pub fn one_mesh_plots(reports: &Path) -> Result<String, StudyError> {
     use crate::study::one_mesh;
     let rows = one_mesh::read_csv(&reports.join(one_mesh::CSV))?;
-    let mut cases: Vec<&str> = rows.iter().map(|r| r.case.as_str()).collect();
-    cases.dedup();
+    let mut cases: Vec<&str> = Vec::new();
+    for r in &rows {
+        if !cases.contains(&r.case.as_str()) {
+            cases.push(&r.case);
+        }
+    }
     let mut md = String::new();
     for case in cases {
         let mut keys: Vec<(&str, &str, &str)> = Vec::new();
@@ -255,8 +259,13 @@ pub fn one_mesh_plots(reports: &Path) -> Result<String, StudyError> {
                 keys.push(key);
             }
         }
-        let mut kinds: Vec<(&str, &str)> = keys.iter().map(|&(m, v, _)| (m, v)).collect();
-        kinds.dedup();
+        // One colour per mesh and variant, in order of appearance.
+        let mut kinds: Vec<(&str, &str)> = Vec::new();
+        for &(m, v, _) in &keys {
+            if !kinds.contains(&(m, v)) {
+                kinds.push((m, v));
+            }
+        }
         let lines: Vec<Line> = keys
             .iter()
             .map(|&(mesh, variant, element)| Line {
