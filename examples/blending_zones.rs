@@ -41,8 +41,8 @@
 //! the interpolant is the same function (`ramp`: the same figures). The
 //! Galerkin solution beats the interpolant in the blending layer (order
 //! 1.9–2.0 above) by moving error into the enriched elements (1.0–1.3); its
-//! orders sit between that cap and 2. A blending function smooth over a
-//! width that does not shrink with h would lift it (cutoff-function
+//! orders stay under 2 with that trade. A blending function smooth over a
+//! width that does not shrink with h is the known remedy (cutoff-function
 //! enrichment); it is not built.
 //!
 //! `cargo run --release --example blending_zones -- N R [tet4|tet10] [ramp|none]`
