@@ -53,12 +53,12 @@ reports/pictures/%.png: target/release/xfem-cut cases/%.toml refs/pictures.py re
 	  --title "$*: X-FEM structured level 2, Tet4 (left) and the graded FEniCSx P2 reference (right), deformed at true scale"
 
 # The one-mesh comparison's meshes (`examples/error_map.rs one-mesh`): gmsh's crack mesh of levels
-# L1-L3 with the crack's nodes shared, uniform as the level (beam_crack_shared) and graded to h/4
+# L1-L4 (Tet10 runs L1-L3) with the crack's nodes shared, uniform as the level (beam_crack_shared) and graded to h/4
 # at the top-face strips' free edges (beam_crack_shared_strips), and the body without the crack
 # graded alike (beam_uncut_strips: X-FEM's front inside elements, as in the study). h per level as
 # make_refs.py's LEVELS.
 LEVEL_H = $(word $(shell echo $$(($(1) + 1))),0.012 0.008 0.006 0.0045 0.0035)
-ONE_MESH_MESHES := $(foreach l,1 2 3,$(foreach f,beam_crack_shared beam_crack_shared_strips beam_uncut_strips,refs/out/meshes/$(f)/L$(l).msh))
+ONE_MESH_MESHES := $(foreach l,1 2 3 4,$(foreach f,beam_crack_shared beam_crack_shared_strips beam_uncut_strips,refs/out/meshes/$(f)/L$(l).msh))
 
 refs/out/meshes/beam_crack_shared/L%.msh: refs/crack_mesh_uncut.py refs/mesh.py
 	cd refs && $(REFS_PY) crack_mesh_uncut.py $(call LEVEL_H,$*) out/meshes/beam_crack_shared/L$*.msh
