@@ -194,15 +194,25 @@ fn ramp_span(csv: &Path) {
 }
 
 /// The one-mesh comparison's meshes (`refs/out/meshes/<family>/L<k>.msh`,
-/// written by `refs/crack_mesh_uncut.py`, `make report`), its cases and
-/// levels per element. The last holds no crack (X-FEM's front inside
-/// elements, as in the study's X-FEM rows): the tip front alone runs there,
-/// beside the FEM run on the crack mesh graded alike
-/// ([`one_mesh::fem_mesh`]).
-const ONE_MESH_FAMILIES: [(&str, &str); 3] = [
-    ("uniform", "beam_crack_shared"),
-    ("strip edges", "beam_crack_shared_strips"),
-    (one_mesh::UNCUT_STRIPS, "beam_uncut_strips"),
+/// written by `refs/crack_mesh_uncut.py`, `make report`) with the runs on
+/// each (the variant `compare` takes, the row's name), its cases and levels
+/// per element. The last holds no crack (X-FEM's front inside elements, as
+/// in the study's X-FEM rows): the tip front alone runs there, beside the
+/// FEM run on the crack mesh graded alike ([`one_mesh::fem_mesh`]).
+type MeshRuns = (
+    &'static str,
+    &'static str,
+    &'static [(&'static str, &'static str)],
+);
+const BOTH: &[(&str, &str)] = &[("extend", "FEM"), ("tip", "tip")];
+const ONE_MESH_FAMILIES: [MeshRuns; 3] = [
+    ("uniform", "beam_crack_shared", BOTH),
+    ("strip edges", "beam_crack_shared_strips", BOTH),
+    (
+        one_mesh::UNCUT_STRIPS,
+        "beam_uncut_strips",
+        &[("tip", "tip")],
+    ),
 ];
 const ONE_MESH_CASES: [&str; 2] = ["bend_face", "stretch_face"];
 /// (Tet4 to L4, a few seconds a run; Tet10 at L4 would hold about 270k DOFs.)
@@ -219,16 +229,11 @@ fn one_mesh(csv: &Path) {
     let mut rows = Vec::new();
     for case in ONE_MESH_CASES {
         let mut scene = Scene::load(&cases.join(format!("{case}.toml"))).expect("case");
-        for (mesh, family) in ONE_MESH_FAMILIES {
+        for (mesh, family, variants) in ONE_MESH_FAMILIES {
             let dir = out_dir().join("meshes").join(family);
             for (element, levels) in ONE_MESH_LEVELS {
                 scene.element = element;
                 for &level in levels {
-                    let variants: &[(&str, &str)] = if mesh == one_mesh::UNCUT_STRIPS {
-                        &[("tip", "tip")]
-                    } else {
-                        &[("extend", "FEM"), ("tip", "tip")]
-                    };
                     for &(variant, name) in variants {
                         let c = compare(scene.clone(), variant, level, 0.0, None, Some(&dir), None);
                         eprintln!(
