@@ -256,6 +256,11 @@ fn run() -> Result<()> {
                     }
                 );
             }
+            // A state turned inside out is written (it is the model's
+            // answer) but not passed off as physical.
+            if let Some(inverted) = xfem_cut::run::inversion(&result) {
+                eprintln!("warning: {}: {inverted}", scene.file.display());
+            }
             // The probes' values first: an error writes nothing.
             let values = probe_values(&scene, &result)?;
             std::fs::create_dir_all(&out)

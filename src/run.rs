@@ -582,3 +582,74 @@ pub fn probe_values(scene: &Scene, result: &RunResult) -> Result<Vec<Vector3<f64
         })
         .collect()
 }
+
+/// A run that ended (or passed an output frame) with part of the body
+/// turned inside out: how many integration groups had det F ≤ 0, the share
+/// of the body's volume they are ([`crate::assembly::inverted_fraction`]),
+/// and the time of the first frame where that share passed
+/// [`COLLAPSED_FRACTION`](crate::dynamics::COLLAPSED_FRACTION) (`None`:
+/// the static equilibrium, or a sweep's last state).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Inversion {
+    pub groups: usize,
+    pub fraction: f64,
+    pub time: Option<f64>,
+    pub formulation: crate::model::Formulation,
+}
+
+impl std::fmt::Display for Inversion {
+    /// One line, for the warning `xfem-cut run` prints.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let when = match self.time {
+            Some(t) => format!("by the output frame at t = {t:.6} s"),
+            None => "in the state the solve ended with".to_string(),
+        };
+        let why = match self.formulation {
+            crate::model::Formulation::Linear => {
+                "linear elasticity assumes small strains, and displacement gradients this large lie outside it"
+            }
+            crate::model::Formulation::Corotational => {
+                "corotational elasticity has no barrier against inversion (and there is no contact), so the body can pass through itself or its supports"
+            }
+        };
+        write!(
+            f,
+            "{} integration groups inverted (det F <= 0; {:.3} % of the body's volume) {when}: {why}; this state is not physical (a stiffer material, smaller loads or more support)",
+            self.groups,
+            self.fraction * 100.0
+        )
+    }
+}
+
+/// Whether `result` left more than
+/// [`COLLAPSED_FRACTION`](crate::dynamics::COLLAPSED_FRACTION) of the body
+/// inverted: in the final state, or in an output frame before it (a
+/// dynamic scene without blades keeps its frames on its one model). The
+/// slivers of cut elements a soft scene turns inside out lie below that
+/// share; a body collapsing onto its clamp or tipping through it (a soft
+/// top-heavy body under gravity, which a corotational Newton converges on
+/// like any other equilibrium) lies far above it.
+pub fn inversion(result: &RunResult) -> Option<Inversion> {
+    use crate::assembly::{inverted_fraction, inverted_groups};
+    use crate::dynamics::COLLAPSED_FRACTION;
+    let model = &result.model;
+    let at = |d: &[f64], time: Option<f64>| {
+        let fraction = inverted_fraction(model, d);
+        (fraction > COLLAPSED_FRACTION).then(|| Inversion {
+            groups: inverted_groups(model, d),
+            fraction,
+            time,
+            formulation: model.formulation,
+        })
+    };
+    let frames = if result.sweep.is_none() {
+        &result.frames[..]
+    } else {
+        &[]
+    };
+    frames
+        .iter()
+        .filter(|(_, d)| d.len() == model.n_dofs())
+        .find_map(|(t, d)| at(d, Some(*t)))
+        .or_else(|| at(&result.d, None))
+}

@@ -71,6 +71,69 @@ fn run_writes_probes_and_vtu() {
     assert!(vtu.contains("<VTKFile") && vtu.ends_with("</VTKFile>\n"));
 }
 
+/// A unit cube whose top-centre node is pushed down through the centre
+/// node (the stress suite's "inverted elements"), solved as `analysis` says.
+fn pushed_through(analysis: &str) -> String {
+    format!(
+        r#"name = "cube"
+[body]
+box = [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]]
+levels = [[2, 2, 2]]
+[material]
+young = 1.0e4
+poisson = 0.3
+density = 1000.0
+[[fix]]
+min = [-inf, -inf, 0.0]
+max = [inf, inf, 0.0]
+[[fix]]
+min = [0.5, 0.5, 1.0]
+max = [0.5, 0.5, 1.0]
+displacement = [0.0, 0.0, -0.8]
+[analysis]
+formulation = "corotational"
+{analysis}
+[[probe]]
+points = [[0.5, 0.5, 1.0]]
+"#
+    )
+}
+
+#[test]
+fn a_state_turned_inside_out_is_written_with_a_one_line_warning() {
+    // The model's answer is written (it converged), and stderr says in one
+    // line that it is not physical: how many groups, how much of the body,
+    // when, and why. A sound scene says nothing of the kind.
+    for (analysis, when) in [
+        (
+            "type = \"static\"\nload_steps = 20\nmax_iterations = 100",
+            "in the state the solve ended with",
+        ),
+        (
+            "type = \"dynamic\"\ndt = 0.01\nsteps = 100\nramp = 0.5\nrayleigh = { mass = 0.1, stiffness = 0.01 }\noutput_every = 10",
+            "by the output frame at t = 0.500000 s",
+        ),
+    ] {
+        let (ok, err, dir) = run_case(&pushed_through(analysis));
+        assert!(ok, "{err}");
+        assert!(dir.path().join("out/probes.csv").exists());
+        let warnings: Vec<&str> = err.lines().filter(|l| l.starts_with("warning: ")).collect();
+        assert_eq!(warnings.len(), 1, "{err}");
+        let w = warnings[0];
+        assert!(w.contains("case.toml: ") && w.contains(when), "{w}");
+        let groups: usize = w
+            .split(": ")
+            .nth(2)
+            .and_then(|rest| rest.split(" integration groups inverted").next())
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("no count of groups: {w}"));
+        assert!(groups >= 1, "{w}");
+        assert!(w.contains("% of the body's volume") && w.contains("not physical"), "{w}");
+    }
+    let (ok, err, _dir) = run_case(GOOD);
+    assert!(ok && !err.contains("warning"), "{err}");
+}
+
 #[test]
 fn bad_input_gives_one_line_errors_naming_the_key() {
     let cases: Vec<(String, &str)> = vec![
