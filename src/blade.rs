@@ -1002,6 +1002,23 @@ pub fn map_state_fitted_with(
     map_state_fitted_cached(old, new, state, fits, parallelism, &mut cache)
 }
 
+/// The symbolic factorisation of `model`'s system in a sweep, at its start
+/// and at each event that changes the pattern: from
+/// [`NESTED_DISSECTION_FROM`](crate::solve::NESTED_DISSECTION_FROM)
+/// equations on, METIS nested dissection on the shape-function graph (what
+/// [`Cholesky::fill_reducing`] takes there for a scene without blades);
+/// below, AMD (the cheapest analysis, and at 1k Tet4 the cheapest factor
+/// too: the rule's other candidates would each cost an event another
+/// analysis).
+pub fn sweep_factor(model: &Model) -> Result<Cholesky, SolveError> {
+    if model.pattern.n >= crate::solve::NESTED_DISSECTION_FROM {
+        let shapes = crate::assembly::equation_shapes(model);
+        Cholesky::nested_dissection(&model.pattern, Some(&shapes), Parallelism::SEQUENTIAL)
+    } else {
+        Cholesky::new(&model.pattern)
+    }
+}
+
 /// What a sweep's projections keep from one event to the next: the Gram
 /// system's symbolic factorisation, taken again where the next event's
 /// Gram has the same pattern (the same fitted functions coupled alike: a
@@ -2088,6 +2105,9 @@ pub struct Sweep {
     /// Projections whose Gram system took the last one's symbolic
     /// factorisation (the same pattern, [`ProjectionCache`]).
     pub gram_analyses_kept: usize,
+    /// How the last model's factorisation was held ([`Cholesky::describe`]:
+    /// its equations, entries in L and ordering, [`sweep_factor`]'s).
+    pub factor: Option<String>,
 }
 
 impl Event {
@@ -2251,7 +2271,7 @@ pub fn run_dynamic_with(
     let mut model = build(cuts.setup_at(mesh, 0.0)?)?;
     sweep.dofs_first = model.n_dofs();
     let mut factor = LinearFactor {
-        chol: Cholesky::new(&model.pattern)?,
+        chol: sweep_factor(&model)?,
         values: None,
         border: None,
         lagged: None,
@@ -2336,6 +2356,7 @@ pub fn run_dynamic_with(
             sweep.factorisations += nm.factorisations() - counted;
             let state = nm.state.clone();
             sweep.dofs_last = model.n_dofs();
+            sweep.factor = Some(nm.factor_description());
             return Ok(Progressive {
                 model,
                 state,
@@ -2398,7 +2419,7 @@ pub fn run_dynamic_with(
                 old.chol
             } else {
                 sweep.symbolic += 1;
-                Cholesky::new(&new_model.pattern)?
+                sweep_factor(&new_model)?
             };
             LinearFactor {
                 chol,

@@ -1050,7 +1050,7 @@ impl<'m> Newmark<'m> {
             p.col_ptr == self.model.pattern.col_ptr && p.row_idx == self.model.pattern.row_idx;
         if !same {
             let counted = self.chol.factorisations;
-            self.chol = Cholesky::new(&self.model.pattern)?;
+            self.chol = crate::blade::sweep_factor(self.model)?;
             self.chol.factorisations = counted;
             self.symbolic += 1;
         }
@@ -1196,6 +1196,11 @@ impl<'m> Newmark<'m> {
 
     pub fn factorisations(&self) -> usize {
         self.chol.factorisations
+    }
+
+    /// How its factorisation is held ([`Cholesky::describe`]).
+    pub fn factor_description(&self) -> String {
+        self.chol.describe()
     }
 
     /// CG iterations done so far (PCG mode).

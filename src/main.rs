@@ -217,7 +217,11 @@ fn run() -> Result<()> {
                 println!("threads: {threads} (XFEM_THREADS; factorisations and element loops)");
             }
             if let Some(factor) = &result.factor {
-                println!("factor: {factor}");
+                if result.sweep.is_some() {
+                    println!("factor (the sweep's last): {factor}");
+                } else {
+                    println!("factor: {factor}");
+                }
             }
             if t.steps > 0 {
                 println!(

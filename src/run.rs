@@ -95,8 +95,9 @@ pub struct RunResult {
     /// the model of its time (the cut as it was, the blade edges as lines).
     pub sweep: Option<Sweep>,
     pub progressive_frames: Vec<(f64, VtuData)>,
-    /// How the system was factorised ([`Cholesky::describe`]); `None` for a
-    /// blade's sweep (one factor per cut event).
+    /// How the system was factorised ([`Cholesky::describe`]); a blade's
+    /// sweep: its last model's (a symbolic factorisation per pattern,
+    /// [`crate::blade::sweep_factor`]).
     pub factor: Option<String>,
 }
 
@@ -459,9 +460,9 @@ fn solve_progressive(
         frames: Vec::new(),
         energies,
         steps: None,
+        factor: result.sweep.factor.clone(),
         sweep: Some(result.sweep),
         progressive_frames: frames,
-        factor: None,
     })
 }
 

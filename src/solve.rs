@@ -554,13 +554,7 @@ impl Cholesky {
                 return Cholesky::split(pattern, &separated, parallelism);
             }
         }
-        let nd = Ordering::nested_dissection(pattern, blocks)?;
-        let mut best = Cholesky::with(pattern, &nd, parallelism)?;
-        best.ordering = if blocks.is_some() {
-            "METIS nested dissection on the shape-function graph"
-        } else {
-            "METIS nested dissection"
-        };
+        let mut best = Cholesky::nested_dissection(pattern, blocks, parallelism)?;
         if pattern.n >= NESTED_DISSECTION_FROM {
             return Ok(best);
         }
@@ -579,6 +573,23 @@ impl Cholesky {
         } else {
             best
         })
+    }
+
+    /// Symbolic factorisation on METIS nested dissection of the graph
+    /// compressed by `blocks` ([`Ordering::nested_dissection`]), named so.
+    pub fn nested_dissection(
+        pattern: &Pattern,
+        blocks: Option<&[usize]>,
+        parallelism: Parallelism,
+    ) -> Result<Cholesky, SolveError> {
+        let nd = Ordering::nested_dissection(pattern, blocks)?;
+        let mut chol = Cholesky::with(pattern, &nd, parallelism)?;
+        chol.ordering = if blocks.is_some() {
+            "METIS nested dissection on the shape-function graph"
+        } else {
+            "METIS nested dissection"
+        };
+        Ok(chol)
     }
 
     /// Whether this factor's numeric factorisation is estimated to cost less

@@ -3219,3 +3219,35 @@ fn a_blade_with_event_travel_cuts_once_its_edge_has_moved_that_far() {
         }
     }
 }
+
+/// A sweep's factor is analysed as a scene without blades would analyse it
+/// where that matters: from 10k equations on, METIS nested dissection on
+/// the shape-function graph, which fills the seed beam's factor with the
+/// blade half-way (12.8k equations, the front inside elements) with fewer
+/// entries than AMD, the ordering a sweep took before 2026-12-08 (a 12k-DOF
+/// gmsh body's sweep then stepped 1.6× slower than after); below, AMD.
+#[test]
+fn a_sweep_orders_its_factor_by_nested_dissection_from_ten_thousand_equations() {
+    use xfem_cut::blade::sweep_factor;
+    use xfem_cut::solve::Cholesky;
+    use xfem_cut::study::fixtures::{beam_mesh, seed_beam, seed_blade};
+    for (div, large) in [([8, 16, 27], true), ([3, 6, 10], false)] {
+        let mesh = beam_mesh(div, false);
+        let cut = seed_blade(0.0, 1.0).setup_at(&mesh, 0.5).unwrap();
+        let m = seed_beam(mesh, Formulation::Corotational, cut).unwrap();
+        let (sweep, amd) = (
+            sweep_factor(&m).unwrap(),
+            Cholesky::new(&m.pattern).unwrap(),
+        );
+        let text = sweep.describe();
+        println!("{div:?}: {text}; AMD {} entries", amd.factor_nnz());
+        assert_eq!(m.pattern.n >= 10_000, large);
+        if large {
+            assert!(text.contains("METIS nested dissection on the shape-function graph"));
+            assert!(sweep.factor_nnz() < amd.factor_nnz());
+        } else {
+            assert!(text.contains("AMD"));
+            assert_eq!(sweep.factor_nnz(), amd.factor_nnz());
+        }
+    }
+}
