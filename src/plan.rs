@@ -61,13 +61,20 @@ impl Plan {
         }
     }
 
-    /// What the mesh file's reader changed, said in the mesh stage: Tet10
-    /// mid-nodes moved onto their edges (elements are straight-sided),
-    /// nodes no tetrahedron uses left out.
+    /// What the mesh file's reader changed, said in the mesh stage: a Tet4
+    /// file's elements made Tet10 ones for a Tet10 scene, Tet10 mid-nodes
+    /// moved onto their edges (elements are straight-sided), nodes no
+    /// tetrahedron uses left out.
     pub fn mesh_notes(&mut self, notes: &MeshNotes) {
         let Some(stage) = self.stages.iter_mut().find(|s| s.name == "mesh") else {
             return;
         };
+        if notes.promoted {
+            stage.why = format!(
+                "{}; its 4-node tetrahedra made 10-node ones (mid-nodes at the edges' midpoints)",
+                stage.why
+            );
+        }
         let s = &notes.straightened;
         if s.mid_nodes > 0 {
             stage.why = format!(

@@ -170,8 +170,9 @@ pub fn solve_scene_observed(
     let t0 = Instant::now();
     let (mesh, notes) = match mesh_override {
         Some(p) => {
-            let (m, notes) = scene.read_mesh_noted(p)?;
+            let (m, mut notes) = scene.read_mesh_noted(p)?;
             if scene.element == crate::mesh::ElementKind::Tet10 {
+                notes.promoted = m.kind == crate::mesh::ElementKind::Tet4;
                 (m.to_tet10(), notes)
             } else {
                 (m, notes)

@@ -274,7 +274,7 @@ impl Scene {
     pub fn mesh_noted(&self, level: usize) -> Result<(TetMesh, MeshNotes), SceneError> {
         self.check_level(level)?;
         self.check_memory(level)?;
-        let (mesh, notes) = match &self.geometry {
+        let (mesh, mut notes) = match &self.geometry {
             BodyGeometry::Box { min, max, levels } => {
                 (box_mesh(*min, *max, levels[level]), MeshNotes::default())
             }
@@ -288,7 +288,11 @@ impl Scene {
                 })
             }
             ElementKind::Tet4 => mesh,
-            ElementKind::Tet10 => mesh.to_tet10(),
+            ElementKind::Tet10 => {
+                notes.promoted = matches!(self.geometry, BodyGeometry::Meshes(_))
+                    && mesh.kind == ElementKind::Tet4;
+                mesh.to_tet10()
+            }
         };
         Ok((mesh, notes))
     }

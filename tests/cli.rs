@@ -607,6 +607,61 @@ fn the_plan_names_the_mesh_given_by_the_mesh_option() {
 /// A blade's `path` may start with the blade itself (times and keyframes one
 /// to one) or leave it out (the blade is the keyframe at times[0]): both read
 /// as the same keyframes.
+/// A Tet10 scene on a gmsh file of 4-node tetrahedra (the case's own mesh
+/// list, or `--mesh`) says in its plan that the elements were made 10-node
+/// ones; on the file's own 10-node elements it does not.
+#[test]
+fn the_plan_says_when_a_tet4_file_is_made_tet10() {
+    let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures");
+    let scene = |mesh: &str| {
+        GOOD.replace(
+            "box = [[0.0, 0.0, 0.0], [0.03, 0.06, 0.2]]\nlevels = [[1, 2, 4]]",
+            &format!("mesh = [{:?}]\nelement = \"tet10\"", fixtures.join(mesh)),
+        )
+        .replace("[[0.0, 0.03, 0.2], [0.03, 0.06, 0.2]]", "[[0.5, 0.5, 1.0]]")
+    };
+    let said = "its 4-node tetrahedra made 10-node ones";
+    for (mesh, promoted) in [
+        ("gmsh_cube_tet4_binary.msh", true),
+        ("gmsh_cube_tet10_binary.msh", false),
+    ] {
+        let (out, _dir) = run_output(&scene(mesh));
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let line = stdout.lines().find(|l| l.contains("] mesh")).unwrap();
+        assert!(line.contains("tet10 gmsh file"), "{line}");
+        assert_eq!(line.contains(said), promoted, "{mesh}: {line}");
+    }
+    // The same through --mesh.
+    let dir = tempfile::tempdir().unwrap();
+    let case = dir.path().join("case.toml");
+    std::fs::write(&case, scene("gmsh_cube_tet10_binary.msh")).unwrap();
+    let out = Command::new(bin())
+        .arg("run")
+        .arg(&case)
+        .arg("--mesh")
+        .arg(fixtures.join("gmsh_cube_tet4_binary.msh"))
+        .arg("--out")
+        .arg(dir.path().join("out"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let line = stdout.lines().find(|l| l.contains("] mesh")).unwrap();
+    assert!(
+        line.contains("given by --mesh") && line.contains(said),
+        "{line}"
+    );
+}
+
 #[test]
 fn a_blade_path_may_leave_out_the_blade_as_its_first_keyframe() {
     use xfem_cut::scene::{CutGeometry, Scene};

@@ -48,6 +48,9 @@ pub struct MeshNotes {
     pub straightened: Straightened,
     /// Nodes no tetrahedron uses, left out.
     pub unused_nodes: usize,
+    /// 4-node tetrahedra made 10-node ones for a Tet10 scene (mid-nodes
+    /// added at the edges' midpoints; set by the scene, not the reader).
+    pub promoted: bool,
 }
 
 impl MshMesh {
@@ -241,6 +244,7 @@ pub fn parse_msh(bytes: &[u8], path: &Path) -> Result<MshMesh, IoError> {
         notes: MeshNotes {
             straightened,
             unused_nodes,
+            promoted: false,
         },
     })
 }
