@@ -800,7 +800,37 @@ fn read_msh_triangles(path: &Path) -> Result<TriangleSurface, SurfaceError> {
             }
         }
     }
+    let (vertices, triangles) = joined(&vertices, &triangles);
     TriangleSurface::new(vertices, triangles, path)
+}
+
+/// The vertices the triangles use, those at the same position joined into
+/// one (as an STL's are): a file whose triangles each have nodes of their
+/// own (a triangle soup, as an STL converted by meshio is written) is the
+/// same surface as one whose triangles share them, not one whose every
+/// edge is a boundary.
+fn joined(
+    vertices: &[Point3<f64>],
+    triangles: &[[usize; 3]],
+) -> (Vec<Point3<f64>>, Vec<[usize; 3]>) {
+    let mut at: HashMap<[u64; 3], usize> = HashMap::new();
+    let mut kept = Vec::new();
+    let mut index = vec![usize::MAX; vertices.len()];
+    let joined = triangles
+        .iter()
+        .map(|t| {
+            t.map(|i| {
+                if index[i] == usize::MAX {
+                    index[i] = *at.entry(bits(&vertices[i])).or_insert_with(|| {
+                        kept.push(vertices[i]);
+                        kept.len() - 1
+                    });
+                }
+                index[i]
+            })
+        })
+        .collect();
+    (kept, joined)
 }
 
 /// Writes `triangles` as an ASCII STL (fixtures, blades' swept strips).

@@ -151,7 +151,15 @@ fn a_planar_patch_written_as_triangles_equals_the_patch() {
         std::fs::write(&quad, gmsh_elements(&v, &quads, 3, false)).unwrap();
         let six = dir.path().join(format!("patch{n}_tri6.msh"));
         std::fs::write(&six, gmsh_elements(&nodes6, &tri6, 9, false)).unwrap();
-        files.extend([ascii, binary, msh, shifted, two, quad, six]);
+        // A soup: each triangle with nodes of its own (an STL converted to
+        // MSH by meshio): the same surface once its coincident nodes are one.
+        let soup_v: Vec<Point3<f64>> = tris.iter().flat_map(|t| t.map(|i| v[i])).collect();
+        let soup_t: Vec<[usize; 3]> = (0..tris.len())
+            .map(|k| [3 * k, 3 * k + 1, 3 * k + 2])
+            .collect();
+        let soup = dir.path().join(format!("patch{n}_soup.msh"));
+        std::fs::write(&soup, gmsh_triangles(&soup_v, &soup_t, false)).unwrap();
+        files.extend([ascii, binary, msh, shifted, two, quad, six, soup]);
     }
     let d_ref = {
         let m = model(
