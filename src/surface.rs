@@ -208,6 +208,77 @@ fn boundary_sides(
     (side_of, neighbours, at)
 }
 
+/// The triangles wound alike across every edge two of them share (each
+/// such edge traversed once each way), so that their normals, and with
+/// them the sign of φ, agree: an STL whose triangles are wound either way
+/// (a surface drawn or exported without care, or solids joined from files
+/// of both conventions) is the surface its consistent twin is. Each
+/// connected part keeps the winding most of its triangles have. Errors: a
+/// surface that cannot be wound alike (one-sided, as a Möbius strip).
+/// Edges in more than two triangles are left to [`TriangleSurface::new`]'s
+/// check.
+fn oriented(mut triangles: Vec<[usize; 3]>) -> Result<Vec<[usize; 3]>, String> {
+    // Per edge (low, high): its triangles, and whether each runs low → high.
+    let mut by_edge: HashMap<(usize, usize), Vec<(usize, bool)>> = HashMap::new();
+    for (t, tri) in triangles.iter().enumerate() {
+        for k in 0..3 {
+            let (i, j) = (tri[k], tri[(k + 1) % 3]);
+            by_edge.entry(edge_key(i, j)).or_default().push((t, i < j));
+        }
+    }
+    let mut flip: Vec<Option<bool>> = vec![None; triangles.len()];
+    for first in 0..triangles.len() {
+        if flip[first].is_some() {
+            continue;
+        }
+        flip[first] = Some(false);
+        let mut part = vec![first];
+        let mut queue = vec![first];
+        while let Some(t) = queue.pop() {
+            let tri = triangles[t];
+            for k in 0..3 {
+                let (i, j) = (tri[k], tri[(k + 1) % 3]);
+                let shared = &by_edge[&edge_key(i, j)];
+                if shared.len() != 2 {
+                    continue;
+                }
+                let forward =
+                    |u: usize, f: bool| shared.iter().find(|s| s.0 == u).map(|s| s.1 != f);
+                let t_flip = flip[t].unwrap_or(false);
+                for &(u, _) in shared.iter().filter(|s| s.0 != t) {
+                    // Wound alike: the two run the edge opposite ways.
+                    let want = forward(t, t_flip) == forward(u, false);
+                    match flip[u] {
+                        None => {
+                            flip[u] = Some(want);
+                            part.push(u);
+                            queue.push(u);
+                        }
+                        Some(f) if f != want => {
+                            return Err(format!(
+                                "triangles {t} and {u} cannot be wound alike (a one-sided surface)"
+                            ));
+                        }
+                        Some(_) => {}
+                    }
+                }
+            }
+        }
+        let flipped = part.iter().filter(|&&t| flip[t] == Some(true)).count();
+        if 2 * flipped > part.len() {
+            for &t in &part {
+                flip[t] = flip[t].map(|f| !f);
+            }
+        }
+    }
+    for (tri, f) in triangles.iter_mut().zip(flip) {
+        if f == Some(true) {
+            tri.swap(1, 2);
+        }
+    }
+    Ok(triangles)
+}
+
 /// A point's coordinates as bits (a key for exact lookups).
 fn bits(p: &Point3<f64>) -> [u64; 3] {
     [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()]
@@ -276,14 +347,18 @@ impl TriangleSurface {
             }
             (hi - lo).norm()
         };
+        if let Some(t) = triangles
+            .iter()
+            .position(|tri| tri.iter().any(|&i| i >= vertices.len()))
+        {
+            return Err(invalid(format!("triangle {t} references a missing vertex")));
+        }
+        let triangles = oriented(triangles).map_err(invalid)?;
         let mut normals = Vec::with_capacity(triangles.len());
         let mut vertex_normals = vec![Vector3::zeros(); vertices.len()];
         let mut count: HashMap<(usize, usize), (Vector3<f64>, usize)> = HashMap::new();
         let mut inward: HashMap<(usize, usize), Vector3<f64>> = HashMap::new();
         for (t, tri) in triangles.iter().enumerate() {
-            if tri.iter().any(|&i| i >= vertices.len()) {
-                return Err(invalid(format!("triangle {t} references a missing vertex")));
-            }
             let p = tri.map(|i| vertices[i]);
             let n = (p[1] - p[0]).cross(&(p[2] - p[0]));
             if n.norm() <= 1e-14 * scale * scale {

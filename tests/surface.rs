@@ -159,7 +159,15 @@ fn a_planar_patch_written_as_triangles_equals_the_patch() {
             .collect();
         let soup = dir.path().join(format!("patch{n}_soup.msh"));
         std::fs::write(&soup, gmsh_triangles(&soup_v, &soup_t, false)).unwrap();
-        files.extend([ascii, binary, msh, shifted, two, quad, six, soup]);
+        // Every other triangle wound the other way (the surface is the same).
+        let mixed: Vec<[usize; 3]> = tris
+            .iter()
+            .enumerate()
+            .map(|(k, &[a, b, c])| if k % 2 == 1 { [a, c, b] } else { [a, b, c] })
+            .collect();
+        let wound = dir.path().join(format!("patch{n}_mixed_winding.stl"));
+        std::fs::write(&wound, ascii_stl(&v, &mixed)).unwrap();
+        files.extend([ascii, binary, msh, shifted, two, quad, six, soup, wound]);
     }
     let d_ref = {
         let m = model(
@@ -907,4 +915,48 @@ fn stand_ins_inside_a_large_closed_surface_take_its_inside() {
             .all(|(x, y)| same_element_cut(x, y)),
         "element cuts differ"
     );
+}
+
+/// A one-sided surface (a Möbius strip of triangles) cannot be wound alike,
+/// so φ would have no sign: refused, naming the file and two triangles.
+#[test]
+fn a_one_sided_surface_is_refused() {
+    let n = 12;
+    let mut v = Vec::new();
+    for k in 0..n {
+        let a = std::f64::consts::TAU * k as f64 / n as f64;
+        let (c, s) = (a.cos(), a.sin());
+        // The strip's half-width turns by half a turn around the loop.
+        let w = Vector3::new(c * (a / 2.0).cos(), s * (a / 2.0).cos(), (a / 2.0).sin()) * 0.2;
+        let centre = Point3::new(c, s, 0.0);
+        v.push(centre - w);
+        v.push(centre + w);
+    }
+    let mut tris = Vec::new();
+    for k in 0..n {
+        let (a0, a1) = (2 * k, 2 * k + 1);
+        // After the last section the strip closes on the first one flipped.
+        let (b0, b1) = if k + 1 < n {
+            (2 * k + 2, 2 * k + 3)
+        } else {
+            (1, 0)
+        };
+        tris.push([a0, b0, a1]);
+        tris.push([a1, b0, b1]);
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("moebius.stl");
+    std::fs::write(&file, ascii_stl(&v, &tris)).unwrap();
+    let Err(message) = TriangleSurface::read(&file).map(|_| ()) else {
+        panic!("a one-sided surface must be refused")
+    };
+    let message = message.to_string();
+    println!("{message}");
+    assert!(
+        message.contains("moebius.stl") && message.contains("cannot be wound alike"),
+        "{message}"
+    );
+    // Cut open (the last section's two triangles left out) it is a strip.
+    std::fs::write(&file, ascii_stl(&v, &tris[..tris.len() - 2])).unwrap();
+    assert!(TriangleSurface::read(&file).is_ok());
 }
