@@ -249,11 +249,28 @@ pub fn parse_msh(bytes: &[u8], path: &Path) -> Result<MshMesh, IoError> {
     })
 }
 
+/// The version a file's `$MeshFormat` section gives (its first word, as
+/// written: "4.1", "2.2"), where the file starts with one.
+fn format_version(bytes: &[u8]) -> Option<String> {
+    let head = &bytes[..bytes.len().min(256)];
+    let text = String::from_utf8_lossy(head);
+    let mut lines = text.lines().map(str::trim);
+    if lines.next()? != "$MeshFormat" {
+        return None;
+    }
+    lines.next()?.split_whitespace().next().map(str::to_string)
+}
+
 /// mshio's parse of a file's bytes, its node tags kept
 /// ([`with_node_tags_kept`]); its failure, or a panic in it (a third-party
 /// parser of untrusted bytes: say, an arithmetic overflow on a hostile
 /// header), as one line.
 pub(crate) fn parse_file(bytes: &[u8]) -> Result<mshio::MshFile<u64, i32, f64>, String> {
+    if let Some(version) = format_version(bytes).filter(|v| !v.starts_with("4.1")) {
+        return Err(format!(
+            "an MSH {version} file, and only MSH 4.1 is read: save it as 4.1 (`gmsh FILE -save -format msh41 -o NEW.msh`, or Mesh.MshFileVersion = 4.1 before writing)"
+        ));
+    }
     let tagged = with_node_tags_kept(bytes);
     let bytes = tagged.as_deref().unwrap_or(bytes);
     let parsed = std::panic::catch_unwind(|| {
@@ -453,6 +470,21 @@ mod tests {
         Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("tests/fixtures")
             .join(name)
+    }
+
+    /// An older MSH version (gmsh's 2.2, still common) is refused saying
+    /// which version it is and how to save it as 4.1.
+    #[test]
+    fn an_msh_2_2_file_is_refused_with_how_to_save_it_as_4_1() {
+        let dir = tempfile::tempdir().unwrap();
+        let text = "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n4\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n$EndNodes\n$Elements\n1\n1 4 2 0 1 1 2 3 4\n$EndElements\n";
+        let message = read_msh(&write(&dir, text)).err().unwrap().to_string();
+        assert!(
+            message.contains("an MSH 2.2 file") && message.contains("-format msh41"),
+            "{message}"
+        );
+        assert_eq!(format_version(b"$MeshFormat\n4.1 0 8\n"), Some("4.1".into()));
+        assert_eq!(format_version(b"solid x\n"), None);
     }
 
     fn write(dir: &tempfile::TempDir, text: &str) -> std::path::PathBuf {
