@@ -71,32 +71,13 @@ fn run_writes_probes_and_vtu() {
     assert!(vtu.contains("<VTKFile") && vtu.ends_with("</VTKFile>\n"));
 }
 
-/// A unit cube whose top-centre node is pushed down through the centre
-/// node (the stress suite's "inverted elements"), solved as `analysis` says.
+/// The stress suite's pushed-through cube (elements invert) solved as
+/// `analysis` says, with a probe.
 fn pushed_through(analysis: &str) -> String {
-    format!(
-        r#"name = "cube"
-[body]
-box = [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]]
-levels = [[2, 2, 2]]
-[material]
-young = 1.0e4
-poisson = 0.3
-density = 1000.0
-[[fix]]
-min = [-inf, -inf, 0.0]
-max = [inf, inf, 0.0]
-[[fix]]
-min = [0.5, 0.5, 1.0]
-max = [0.5, 0.5, 1.0]
-displacement = [0.0, 0.0, -0.8]
-[analysis]
-formulation = "corotational"
-{analysis}
-[[probe]]
-points = [[0.5, 0.5, 1.0]]
-"#
-    )
+    let analysis = format!(
+        "[analysis]\nformulation = \"corotational\"\n{analysis}\n[[probe]]\npoints = [[0.5, 0.5, 1.0]]\n"
+    );
+    xfem_cut::study::stress::pushed_through_cube(&analysis)
 }
 
 #[test]

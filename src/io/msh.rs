@@ -483,7 +483,10 @@ mod tests {
             message.contains("an MSH 2.2 file") && message.contains("-format msh41"),
             "{message}"
         );
-        assert_eq!(format_version(b"$MeshFormat\n4.1 0 8\n"), Some("4.1".into()));
+        assert_eq!(
+            format_version(b"$MeshFormat\n4.1 0 8\n"),
+            Some("4.1".into())
+        );
         assert_eq!(format_version(b"solid x\n"), None);
     }
 

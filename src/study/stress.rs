@@ -919,16 +919,12 @@ fn twist(
     Ok((model, sol))
 }
 
-/// A unit cube whose top-centre node is pushed through the centre node:
-/// elements invert. The polar decomposition must still give proper rotations
-/// and the solvers finite states (static: converged or a clear error).
-fn inverted_element() -> Vec<StressRow> {
-    const TEST: &str = "inverted elements";
-    let cube = |analysis: &str| {
-        parse(
-            "cube",
-            &format!(
-                r#"name = "cube"
+/// The case file of a unit cube (2 × 2 × 2 hexahedra, clamped at its
+/// base) whose top-centre node is pushed down through the centre node by
+/// 0.8, with `analysis` (its `[analysis]` table) appended: elements invert.
+pub fn pushed_through_cube(analysis: &str) -> String {
+    format!(
+        r#"name = "cube"
 [body]
 box = [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]]
 levels = [[2, 2, 2]]
@@ -944,9 +940,16 @@ min = [0.5, 0.5, 1.0]
 max = [0.5, 0.5, 1.0]
 displacement = [0.0, 0.0, -0.8]
 {analysis}"#
-            ),
-        )
-    };
+    )
+}
+
+/// A unit cube whose top-centre node is pushed through the centre node
+/// ([`pushed_through_cube`]): elements invert. The polar decomposition must
+/// still give proper rotations and the solvers finite states (static:
+/// converged or a clear error).
+fn inverted_element() -> Vec<StressRow> {
+    const TEST: &str = "inverted elements";
+    let cube = |analysis: &str| parse("cube", &pushed_through_cube(analysis));
     let criterion = "finite; converged (static) or every step converged (dynamic); proper rotations; ≥ 1 element inverted";
     let mut rows = Vec::new();
     for (setting, analysis) in [
