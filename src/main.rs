@@ -235,6 +235,15 @@ fn run() -> Result<()> {
                 if let Some(steps) = &result.steps {
                     println!("per step: {steps}");
                 }
+                if let (Some(sweep), Some([cutting, other])) =
+                    (&result.sweep, &result.steps_while_cutting)
+                {
+                    println!(
+                        "per step while the blades cut (t in ({}, {}] s): {cutting}",
+                        sweep.start, sweep.end
+                    );
+                    println!("per step before and after: {other}");
+                }
                 if let Some(sweep) = &result.sweep {
                     let mut times: Vec<f64> = sweep.series.iter().map(|s| s.1).collect();
                     times.sort_by(f64::total_cmp);

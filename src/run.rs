@@ -91,6 +91,9 @@ pub struct RunResult {
     pub energies: Vec<(f64, Energies)>,
     /// Dynamic runs: per-step time, Newton and CG iterations, factorisations.
     pub steps: Option<StepSummary>,
+    /// A blade's sweep: [`RunResult::steps`] split into the steps that end
+    /// while a blade cuts (t in (start, end] of the sweep) and the others.
+    pub steps_while_cutting: Option<[StepSummary; 2]>,
     /// A dynamic scene with blades: the sweep, and its frames drawn each with
     /// the model of its time (the cut as it was, the blade edges as lines).
     pub sweep: Option<Sweep>,
@@ -278,6 +281,7 @@ pub fn solve_scene_observed(
                 frames: Vec::new(),
                 energies: Vec::new(),
                 steps: None,
+                steps_while_cutting: None,
                 sweep: None,
                 progressive_frames: Vec::new(),
                 factor: Some(factor),
@@ -346,6 +350,7 @@ pub fn solve_scene_observed(
                 frames,
                 energies,
                 steps: Some(stats.summary()),
+                steps_while_cutting: None,
                 sweep: None,
                 progressive_frames: Vec::new(),
                 factor: Some(factor),
@@ -398,6 +403,7 @@ fn solve_progressive(
     let mut iterations = Vec::with_capacity(options.steps);
     let mut residual: f64 = 0.0;
     let mut factorisations = 0;
+    let mut reports = Vec::with_capacity(options.steps);
     let t2 = Instant::now();
     let result = run_dynamic_with(
         &cuts,
@@ -422,6 +428,7 @@ fn solve_progressive(
                     iterations.push(r.iterations);
                     residual = residual.max(r.residual);
                     factorisations += r.factorisations;
+                    reports.push(r);
                 }
             }
             if step % output_every == 0 || step == options.steps {
@@ -440,6 +447,19 @@ fn solve_progressive(
     let solve = t2.elapsed().as_secs_f64();
     let n_elements = mesh.n_elements();
     let plan = Plan::new(scene, &result.model, n_elements, [t_setup, 0.0, 0.0]);
+    // Each step's report beside its wall time (the sweep's series: one
+    // entry a step, in order), all steps and split by the sweep's window.
+    let (mut all, mut cutting, mut other) = (
+        StepStats::with_capacity(reports.len()),
+        StepStats::default(),
+        StepStats::default(),
+    );
+    let (start, end) = (result.sweep.start, result.sweep.end);
+    for (r, &(time, seconds, _)) in reports.iter().zip(&result.sweep.series) {
+        all.record(r, seconds);
+        let during = time > start && time <= end + 1e-9 * options.dt;
+        if during { &mut cutting } else { &mut other }.record(r, seconds);
+    }
     Ok(RunResult {
         plan,
         d: result.state.d.clone(),
@@ -460,7 +480,8 @@ fn solve_progressive(
         cutbacks: 0,
         frames: Vec::new(),
         energies,
-        steps: None,
+        steps: Some(all.summary()),
+        steps_while_cutting: Some([cutting.summary(), other.summary()]),
         factor: result.sweep.factor.clone(),
         sweep: Some(result.sweep),
         progressive_frames: frames,

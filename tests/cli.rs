@@ -643,6 +643,49 @@ fn the_plan_says_when_a_tet4_file_is_made_tet10() {
     );
 }
 
+/// A blade's run prints its steps' cost while the blade cuts apart from the
+/// others (the sweep's events make its steps dearer: what a user weighs),
+/// and the factor its last model took.
+#[test]
+fn a_sweep_prints_its_steps_while_cutting_apart_from_the_others() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new(bin())
+        .arg("run")
+        .arg(cases().join("cut_progressive.toml"))
+        .arg("--out")
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let line = |start: &str| {
+        stdout
+            .lines()
+            .find(|l| l.starts_with(start))
+            .unwrap_or_else(|| panic!("no line starting {start:?}: {stdout}"))
+            .to_string()
+    };
+    // [0.1, 0.6] s at dt = 0.01 s: the 50 steps ending in (0.1, 0.6], of 300.
+    let cutting = line("per step while the blades cut (t in (0.1, 0.6] s): 50 steps: ");
+    let other = line("per step before and after: 250 steps: ");
+    let factorisations = |l: &str| -> f64 {
+        l.split(", ")
+            .find_map(|p| p.strip_suffix(" factorisations a step"))
+            .and_then(|v| v.parse().ok())
+            .unwrap_or_else(|| panic!("{l}"))
+    };
+    // A linear scene refactorises at its events only.
+    assert!(
+        factorisations(&cutting) > 0.5 && factorisations(&other) < 0.1,
+        "{cutting}\n{other}"
+    );
+    assert!(line("factor (the sweep's last): whole (").contains("AMD"));
+}
+
 #[test]
 fn a_blade_path_may_leave_out_the_blade_as_its_first_keyframe() {
     use xfem_cut::scene::{CutGeometry, Scene};
