@@ -3223,7 +3223,7 @@ fn a_blade_with_event_travel_cuts_once_its_edge_has_moved_that_far() {
 /// A sweep's factor is analysed as a scene without blades would analyse it
 /// where that matters: from 10k equations on, METIS nested dissection on
 /// the shape-function graph, which fills the seed beam's factor with the
-/// blade half-way (12.8k equations, the front inside elements) with fewer
+/// blade half-way (12.6k equations, the front inside elements) with fewer
 /// entries than AMD, the ordering a sweep took before 2026-12-08 (a 12k-DOF
 /// gmsh body's sweep then stepped 1.6× slower than after); below, AMD.
 #[test]

@@ -47,6 +47,20 @@ fn run_output(text: &str) -> (std::process::Output, tempfile::TempDir) {
     (out, dir)
 }
 
+/// Runs `xfem-cut run` on the shipped case `cases/NAME.toml` into a temp
+/// directory: its output.
+fn run_shipped(name: &str) -> (std::process::Output, tempfile::TempDir) {
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new(bin())
+        .arg("run")
+        .arg(cases().join(format!("{name}.toml")))
+        .arg("--out")
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    (out, dir)
+}
+
 /// Runs `xfem-cut run` on `text` written to a temp case file.
 fn run_case(text: &str) -> (bool, String, tempfile::TempDir) {
     let (out, dir) = run_output(text);
@@ -221,14 +235,7 @@ fn a_probe_outside_the_body_is_refused_before_anything_is_written() {
 #[test]
 fn shipped_uncut_cases_run() {
     for name in ["gravity_uncut", "stretch_face_uncut", "slice_uncut"] {
-        let dir = tempfile::tempdir().unwrap();
-        let out = Command::new(bin())
-            .arg("run")
-            .arg(cases().join(format!("{name}.toml")))
-            .arg("--out")
-            .arg(dir.path())
-            .output()
-            .unwrap();
+        let (out, dir) = run_shipped(name);
         assert!(
             out.status.success(),
             "{name}: {}",
@@ -585,9 +592,6 @@ fn the_plan_names_the_mesh_given_by_the_mesh_option() {
     );
 }
 
-/// A blade's `path` may start with the blade itself (times and keyframes one
-/// to one) or leave it out (the blade is the keyframe at times[0]): both read
-/// as the same keyframes.
 /// A Tet10 scene on a gmsh file of 4-node tetrahedra (the case's own mesh
 /// list, or `--mesh`) says in its plan that the elements were made 10-node
 /// ones; on the file's own 10-node elements it does not.
@@ -648,14 +652,7 @@ fn the_plan_says_when_a_tet4_file_is_made_tet10() {
 /// and the factor its last model took.
 #[test]
 fn a_sweep_prints_its_steps_while_cutting_apart_from_the_others() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = Command::new(bin())
-        .arg("run")
-        .arg(cases().join("cut_progressive.toml"))
-        .arg("--out")
-        .arg(dir.path())
-        .output()
-        .unwrap();
+    let (out, _dir) = run_shipped("cut_progressive");
     assert!(
         out.status.success(),
         "{}",
@@ -686,6 +683,9 @@ fn a_sweep_prints_its_steps_while_cutting_apart_from_the_others() {
     assert!(line("factor (the sweep's last): whole (").contains("AMD"));
 }
 
+/// A blade's `path` may start with the blade itself (times and keyframes one
+/// to one) or leave it out (the blade is the keyframe at times[0]): both read
+/// as the same keyframes.
 #[test]
 fn a_blade_path_may_leave_out_the_blade_as_its_first_keyframe() {
     use xfem_cut::scene::{CutGeometry, Scene};
