@@ -34,12 +34,24 @@ points = [[0.0, 0.03, 0.2], [0.03, 0.06, 0.2]]
 
 /// Runs `xfem-cut run` on `text` written to a temp case file: its output.
 fn run_output(text: &str) -> (std::process::Output, tempfile::TempDir) {
+    run_text(text, &[])
+}
+
+/// Runs `xfem-cut run --mesh MESH` on `text` written to a temp case file:
+/// its output.
+fn run_on_mesh(text: &str, mesh: &Path) -> (std::process::Output, tempfile::TempDir) {
+    run_text(text, &[std::ffi::OsStr::new("--mesh"), mesh.as_os_str()])
+}
+
+/// `xfem-cut run CASE ARGS --out DIR/out`, CASE `text` written to DIR/case.toml.
+fn run_text(text: &str, args: &[&std::ffi::OsStr]) -> (std::process::Output, tempfile::TempDir) {
     let dir = tempfile::tempdir().unwrap();
     let case = dir.path().join("case.toml");
     std::fs::write(&case, text).unwrap();
     let out = Command::new(bin())
         .arg("run")
         .arg(&case)
+        .args(args)
         .arg("--out")
         .arg(dir.path().join("out"))
         .output()
@@ -555,28 +567,15 @@ fn a_dynamic_run_writes_a_series_that_reads_back() {
 
 #[test]
 fn the_plan_names_the_mesh_given_by_the_mesh_option() {
-    let dir = tempfile::tempdir().unwrap();
-    let case = dir.path().join("case.toml");
-    std::fs::write(
-        &case,
-        GOOD.replace(
+    let text = GOOD
+        .replace(
             "[[0.0, 0.0, 0.0], [0.03, 0.06, 0.2]]",
             "[[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]]",
         )
-        .replace("[[0.0, 0.03, 0.2], [0.03, 0.06, 0.2]]", "[[0.5, 0.5, 1.0]]"),
-    )
-    .unwrap();
+        .replace("[[0.0, 0.03, 0.2], [0.03, 0.06, 0.2]]", "[[0.5, 0.5, 1.0]]");
     let mesh =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/gmsh_cube_tet4_binary.msh");
-    let out = Command::new(bin())
-        .arg("run")
-        .arg(&case)
-        .arg("--mesh")
-        .arg(&mesh)
-        .arg("--out")
-        .arg(dir.path().join("out"))
-        .output()
-        .unwrap();
+    let (out, _dir) = run_on_mesh(&text, &mesh);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),
@@ -622,18 +621,10 @@ fn the_plan_says_when_a_tet4_file_is_made_tet10() {
         assert_eq!(line.contains(said), promoted, "{mesh}: {line}");
     }
     // The same through --mesh.
-    let dir = tempfile::tempdir().unwrap();
-    let case = dir.path().join("case.toml");
-    std::fs::write(&case, scene("gmsh_cube_tet10_binary.msh")).unwrap();
-    let out = Command::new(bin())
-        .arg("run")
-        .arg(&case)
-        .arg("--mesh")
-        .arg(fixtures.join("gmsh_cube_tet4_binary.msh"))
-        .arg("--out")
-        .arg(dir.path().join("out"))
-        .output()
-        .unwrap();
+    let (out, _dir) = run_on_mesh(
+        &scene("gmsh_cube_tet10_binary.msh"),
+        &fixtures.join("gmsh_cube_tet4_binary.msh"),
+    );
     assert!(
         out.status.success(),
         "{}",
