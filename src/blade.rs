@@ -2082,6 +2082,9 @@ pub struct Event {
 pub struct Sweep {
     pub start: f64,
     pub end: f64,
+    /// The run's last time (steps × dt): before `end` where the run stops
+    /// with the blades still cutting (their cut is where they were then).
+    pub run_end: f64,
     pub events: Vec<Event>,
     pub dofs_first: usize,
     pub dofs_last: usize,
@@ -2132,6 +2135,24 @@ impl Sweep {
             .fold((0, 0), |(n, k), b| (n + 1, k.max(b)))
     }
 
+    /// The end of the time the blades cut in this run: `end`, or the run's
+    /// end where that comes first.
+    pub fn cut_until(&self) -> f64 {
+        self.end.min(self.run_end)
+    }
+
+    /// " (…)" where the run ends before the blades do, else empty.
+    fn stopped_early(&self) -> String {
+        if self.run_end < self.end {
+            format!(
+                " (the run ends at {:.4} s, with the blades still cutting: the cut is as far as they came)",
+                self.run_end
+            )
+        } else {
+            String::new()
+        }
+    }
+
     /// The largest [`Event::energy_jump`] of the sweep (with a tip front the
     /// field changes at every event: [`project_tip_change`] fits it).
     pub fn largest_energy_jump(&self) -> f64 {
@@ -2180,9 +2201,10 @@ impl std::fmt::Display for Sweep {
         let lagged = self.events.iter().filter(|e| e.lagged).count();
         write!(
             f,
-            "sweep {:.4} → {:.4} s: {} cut events ({} changed the pattern, {} set-ups checked; {} solved bordered on an earlier factor (border up to {}, {} refactorised later), {} went on with the lagged factor, {} refactorised), DOFs {} → {}, {} symbolic / {} numeric factorisations, {:.3} s in events, {:.3} s checking, {:.3} s in steps, largest energy change at an event {:.1e}{}",
+            "sweep {:.4} → {:.4} s{}: {} cut events ({} changed the pattern, {} set-ups checked; {} solved bordered on an earlier factor (border up to {}, {} refactorised later), {} went on with the lagged factor, {} refactorised), DOFs {} → {}, {} symbolic / {} numeric factorisations, {:.3} s in events, {:.3} s checking, {:.3} s in steps, largest energy change at an event {:.1e}{}",
             self.start,
             self.end,
+            self.stopped_early(),
             self.events.len(),
             patterns,
             self.checks,
@@ -2265,6 +2287,7 @@ pub fn run_dynamic_with(
     let mut sweep = Sweep {
         start,
         end,
+        run_end: opts.dt * opts.steps as f64,
         ..Sweep::default()
     };
     let index = SweepIndex::new(cuts, mesh);

@@ -240,9 +240,21 @@ fn run() -> Result<()> {
                 {
                     println!(
                         "per step while the blades cut (t in ({}, {}] s): {cutting}",
-                        sweep.start, sweep.end
+                        sweep.start,
+                        sweep.cut_until()
                     );
-                    println!("per step before and after: {other}");
+                    // Steps before the first blade starts, after the last ends.
+                    let before = sweep.series.first().is_some_and(|s| s.0 <= sweep.start);
+                    let after = sweep.end < sweep.run_end;
+                    let when = match (before, after) {
+                        (true, true) => "before and after",
+                        (true, false) => "before",
+                        (false, true) => "after",
+                        (false, false) => "",
+                    };
+                    if other.steps > 0 {
+                        println!("per step {when}: {other}");
+                    }
                 }
                 if let Some(sweep) = &result.sweep {
                     let mut times: Vec<f64> = sweep.series.iter().map(|s| s.1).collect();

@@ -395,6 +395,17 @@ fn cut_kinds_run_or_are_refused_clearly() {
             "cut[0].surface",
             "a vertex coordinate is not a finite number",
         ),
+        // The run ends at 2 × 0.01 s: a blade starting then never cuts.
+        (
+            dynamic(&format!("{blade}\ntravel = [0.015, 0.0, 0.0]\nstart = 0.02\nend = 0.1")),
+            "cut[0].start",
+            "when the run has ended (steps × dt = 2 × 0.01 = 0.02 s)",
+        ),
+        (
+            dynamic(&format!("{blade}\npath = [[[0.0, -0.01, 0.1], [0.0, 0.07, 0.1]], [[0.01, -0.01, 0.1], [0.01, 0.07, 0.1]]]\ntimes = [0.5, 0.6]")),
+            "cut[0].times",
+            "the blade starts at t = 0.5 s, when the run has ended",
+        ),
     ]);
     // Each runs: the seed's front extended or tip-enriched, per-cut snaps, a
     // static blade (its completed sweep).
@@ -672,6 +683,35 @@ fn a_sweep_prints_its_steps_while_cutting_apart_from_the_others() {
         "{cutting}\n{other}"
     );
     assert!(line("factor (the sweep's last): whole (").contains("AMD"));
+}
+
+/// A run that ends while its blade still cuts says so, and times its steps
+/// until then (the blade starts at 0: no steps before it, none after).
+#[test]
+fn a_sweep_the_run_ends_before_its_end_says_so() {
+    let text = GOOD.replace("levels = [[1, 2, 4]]", "levels = [[2, 2, 8]]").replace(
+        "type = \"static\"",
+        "type = \"dynamic\"\ndt = 0.01\nsteps = 3\n[[cut]]\nblade = [[0.0, -0.01, 0.1], [0.0, 0.07, 0.1]]\ntravel = [0.015, 0.0, 0.0]\nstart = 0.0\nend = 0.1",
+    );
+    let (out, _dir) = run_output(&text);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains(
+            "sweep 0.0000 → 0.1000 s (the run ends at 0.0300 s, with the blades still cutting"
+        ),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("per step while the blades cut (t in (0, 0.03] s): 3 steps: "),
+        "{stdout}"
+    );
+    assert!(!stdout.contains("per step before"), "{stdout}");
+    assert!(!stdout.contains("per step after"), "{stdout}");
 }
 
 /// A blade's `path` may start with the blade itself (times and keyframes one

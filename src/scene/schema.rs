@@ -552,6 +552,26 @@ pub fn validate(case: CaseFile, path: &Path) -> Result<Scene, SceneError> {
 
     // [analysis]
     let (formulation, analysis) = validate_analysis(&c, case.analysis)?;
+    // A dynamic run's blade must start cutting before the run's last step
+    // (a static scene takes the completed sweep, whenever it happens).
+    if let Analysis::Dynamic { options, .. } = &analysis {
+        let last = options.dt * options.steps as f64;
+        for (i, cut) in cuts.iter().enumerate() {
+            if let CutGeometry::Blade { keyframes, travel } = &cut.geometry {
+                let start = keyframes[0].0;
+                if start >= last {
+                    let key = if travel.is_some() { "start" } else { "times" };
+                    return Err(c.err(
+                        format!("cut[{i}].{key}"),
+                        format!(
+                            "the blade starts at t = {start} s, when the run has ended (steps × dt = {} × {} = {last} s): it would never cut",
+                            options.steps, options.dt
+                        ),
+                    ));
+                }
+            }
+        }
+    }
 
     // [[probe]]
     let mut probes = Vec::new();
