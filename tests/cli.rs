@@ -576,6 +576,22 @@ fn a_dynamic_run_writes_a_series_that_reads_back() {
     assert!(disp[1].x > 0.0, "gravity in +x moves the tip in +x");
 }
 
+/// Step n of a run ends at n·dt to the last bit, not at dt summed n times
+/// (20 steps of 5 ms summed: 0.10000000000000002 s, in the series' frame
+/// times, the probes' and the sweeps' step times).
+#[test]
+fn a_run_steps_on_multiples_of_its_time_step() {
+    let text = GOOD.replace(
+        "type = \"static\"",
+        "type = \"dynamic\"\ndt = 0.005\nsteps = 20\noutput_every = 10",
+    );
+    let (ok, err, dir) = run_case(&text);
+    assert!(ok, "{err}");
+    let series = xfem_cut::io::read_pvd(&dir.path().join("out").join("result.pvd")).unwrap();
+    let times: Vec<f64> = series.iter().map(|(t, _)| *t).collect();
+    assert_eq!(times, [0.0, 10.0 * 0.005, 20.0 * 0.005]);
+}
+
 #[test]
 fn the_plan_names_the_mesh_given_by_the_mesh_option() {
     let text = GOOD
