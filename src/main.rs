@@ -290,11 +290,28 @@ fn run() -> Result<()> {
             let values = probe_values(&scene, &result)?;
             std::fs::create_dir_all(&out)
                 .map_err(|e| anyhow::anyhow!("--out {}: cannot create it: {e}", out.display()))?;
-            xfem_cut::output::write_result(&scene, &result, &out)?;
+            let mut stale = xfem_cut::output::write_result(&scene, &result, &out)?;
+            let path = out.join("probes.csv");
             if !scene.probes.is_empty() {
-                let path = out.join("probes.csv");
                 xfem_cut::output::write_probes(&path, &scene.probes, &values)?;
                 println!("wrote {}", path.display());
+            } else if path.is_file() {
+                // An earlier run's probes would pass for this one's.
+                std::fs::remove_file(&path).map_err(|e| {
+                    anyhow::anyhow!(
+                        "{}: cannot remove an earlier run's file: {e}",
+                        path.display()
+                    )
+                })?;
+                stale.push(path);
+            }
+            if !stale.is_empty() {
+                println!(
+                    "removed {} file(s) an earlier run left in {} that this run did not write ({})",
+                    stale.len(),
+                    out.display(),
+                    stale_names(&out, &stale)
+                );
             }
             Ok(())
         }
@@ -413,4 +430,25 @@ fn run() -> Result<()> {
             Ok(())
         }
     }
+}
+
+/// `files` (under `out`) named in short: `result.pvd, frames/result_00002.vtu
+/// … frames/result_00043.vtu (42 frames)`.
+fn stale_names(out: &std::path::Path, files: &[PathBuf]) -> String {
+    let rel = |p: &PathBuf| p.strip_prefix(out).unwrap_or(p).display().to_string();
+    let (frames, other): (Vec<&PathBuf>, Vec<&PathBuf>) = files
+        .iter()
+        .partition(|p| p.parent().is_some_and(|d| d.ends_with("frames")));
+    let mut parts: Vec<String> = other.iter().map(|p| rel(p)).collect();
+    match frames.as_slice() {
+        [] => {}
+        [one] => parts.push(rel(one)),
+        [first, .., last] => parts.push(format!(
+            "{} … {} ({} frames)",
+            rel(first),
+            rel(last),
+            frames.len()
+        )),
+    }
+    parts.join(", ")
 }

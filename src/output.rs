@@ -11,7 +11,7 @@ use crate::model::Model;
 use crate::run::{RunError, RunResult};
 use crate::scene::Scene;
 use nalgebra::{Point3, Vector3};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Points, cells and per-point displacement of the deformed-state picture.
 struct Picture {
@@ -99,7 +99,67 @@ fn vtu_data(pic: &Picture) -> VtuData {
 
 /// Writes `result.vtu` (last state) and, for a dynamic run, `result.pvd` with
 /// one `frames/result_K.vtu` per kept frame; each file whole or not at all.
-pub fn write_result(_scene: &Scene, result: &RunResult, out: &Path) -> Result<(), RunError> {
+/// Then removes what an earlier run into `out` left that this one did not
+/// write ([`remove_stale_series`]): those files, which it returns.
+pub fn write_result(
+    _scene: &Scene,
+    result: &RunResult,
+    out: &Path,
+) -> Result<Vec<PathBuf>, RunError> {
+    let frames = result.progressive_frames.len().max(result.frames.len());
+    write_series(result, out)?;
+    remove_stale_series(out, frames)
+}
+
+/// An earlier run's series in `out` beyond the `frames` frames just
+/// written: `frames/result_K.vtu` for K ≥ `frames`, and `result.pvd` and
+/// the emptied `frames/` where none was written (a static run after a
+/// dynamic one). Left there, they passed for this run's: a viewer opening
+/// `result.pvd` played the earlier motion, and one opening the frames as a
+/// file series mixed the two runs. Only names this program writes are
+/// touched. Returns the files removed.
+pub fn remove_stale_series(out: &Path, frames: usize) -> Result<Vec<PathBuf>, RunError> {
+    let mut removed = Vec::new();
+    let mut remove = |path: PathBuf| -> Result<(), RunError> {
+        std::fs::remove_file(&path)
+            .map_err(|e| crate::io::IoError::os(&path, "remove an earlier run's file", e))?;
+        removed.push(path);
+        Ok(())
+    };
+    let dir = out.join("frames");
+    if let Ok(entries) = std::fs::read_dir(&dir) {
+        let mut stale: Vec<PathBuf> = entries
+            .filter_map(Result::ok)
+            .filter(|e| {
+                let name = e.file_name();
+                let k = name
+                    .to_str()
+                    .and_then(|n| n.strip_prefix("result_"))
+                    .and_then(|n| n.strip_suffix(".vtu"))
+                    .filter(|k| k.len() >= 5 && k.bytes().all(|b| b.is_ascii_digit()))
+                    .and_then(|k| k.parse::<usize>().ok());
+                k.is_some_and(|k| k >= frames) && e.file_type().is_ok_and(|t| t.is_file())
+            })
+            .map(|e| e.path())
+            .collect();
+        stale.sort();
+        for path in stale {
+            remove(path)?;
+        }
+        if frames == 0 {
+            // Only where nothing else is in it.
+            let _ = std::fs::remove_dir(&dir);
+        }
+    }
+    let pvd = out.join("result.pvd");
+    if frames == 0 && pvd.is_file() {
+        remove(pvd)?;
+    }
+    Ok(removed)
+}
+
+/// [`write_result`]'s files.
+fn write_series(result: &RunResult, out: &Path) -> Result<(), RunError> {
     if !result.progressive_frames.is_empty() {
         return write_progressive(out, &result.progressive_frames);
     }

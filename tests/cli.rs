@@ -576,6 +576,80 @@ fn a_dynamic_run_writes_a_series_that_reads_back() {
     assert!(disp[1].x > 0.0, "gravity in +x moves the tip in +x");
 }
 
+/// Runs into one folder keep no earlier run's outputs that would pass for
+/// theirs: a shorter series removes the frames beyond its own, a static run
+/// without probes the series, its frames and `probes.csv`; other files
+/// stay.
+#[test]
+fn a_run_into_a_used_folder_leaves_none_of_the_earlier_runs_outputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let run = |text: &str| {
+        let case = dir.path().join("case.toml");
+        std::fs::write(&case, text).unwrap();
+        let o = Command::new(bin())
+            .arg("run")
+            .arg(&case)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stdout).to_string()
+    };
+    let dynamic = |steps: usize| {
+        GOOD.replace(
+            "type = \"static\"",
+            &format!("type = \"dynamic\"\ndt = 0.01\nsteps = {steps}\noutput_every = 1"),
+        )
+    };
+    let frames = || -> Vec<String> {
+        let mut names: Vec<String> = std::fs::read_dir(out.join("frames"))
+            .map(|d| {
+                d.map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+                    .collect()
+            })
+            .unwrap_or_default();
+        names.sort();
+        names
+    };
+    run(&dynamic(3));
+    assert_eq!(frames().len(), 4);
+    std::fs::write(out.join("notes.txt"), "mine").unwrap();
+    std::fs::write(out.join("frames/keep.txt"), "mine").unwrap();
+    let stdout = run(&dynamic(1));
+    assert_eq!(
+        frames(),
+        ["keep.txt", "result_00000.vtu", "result_00001.vtu"],
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("removed 2 file(s) an earlier run left in"),
+        "{stdout}"
+    );
+    assert_eq!(
+        xfem_cut::io::read_pvd(&out.join("result.pvd"))
+            .unwrap()
+            .len(),
+        2
+    );
+    // Static, no probes: no series, no probes.
+    let stdout = run(&GOOD.replace(
+        "[[probe]]\npoints = [[0.0, 0.03, 0.2], [0.03, 0.06, 0.2]]\n",
+        "",
+    ));
+    assert!(!out.join("result.pvd").exists(), "{stdout}");
+    assert!(!out.join("probes.csv").exists(), "{stdout}");
+    assert_eq!(frames(), ["keep.txt"]);
+    assert!(out.join("notes.txt").exists() && out.join("result.vtu").exists());
+    // Without the file of its own, the emptied folder goes too.
+    std::fs::remove_file(out.join("frames/keep.txt")).unwrap();
+    run(&dynamic(1));
+    run(GOOD);
+    assert!(!out.join("frames").exists());
+    assert!(out.join("probes.csv").exists());
+}
+
 /// Step n of a run ends at n·dt to the last bit, not at dt summed n times
 /// (20 steps of 5 ms summed: 0.10000000000000002 s, in the series' frame
 /// times, the probes' and the sweeps' step times).
