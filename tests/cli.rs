@@ -73,6 +73,16 @@ fn run_shipped(name: &str) -> (std::process::Output, tempfile::TempDir) {
     (out, dir)
 }
 
+/// The stdout of a run that must have succeeded (else its stderr fails the test).
+fn succeeded(out: &std::process::Output) -> String {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).to_string()
+}
+
 /// Runs `xfem-cut run` on `text` written to a temp case file.
 fn run_case(text: &str) -> (bool, String, tempfile::TempDir) {
     let (out, dir) = run_output(text);
@@ -517,12 +527,7 @@ fn the_plan_shows_the_options_the_run_uses() {
         ),
     ] {
         let (out, _dir) = run_output(&text);
-        let stdout = String::from_utf8_lossy(&out.stdout);
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        let stdout = succeeded(&out);
         let plan: String = stdout
             .lines()
             .filter(|l| l.starts_with("  ["))
@@ -677,12 +682,7 @@ fn the_plan_names_the_mesh_given_by_the_mesh_option() {
     let mesh =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/gmsh_cube_tet4_binary.msh");
     let (out, _dir) = run_on_mesh(&text, &mesh);
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let stdout = succeeded(&out);
     let line = stdout.lines().find(|l| l.contains("] mesh")).unwrap();
     assert!(
         line.contains("tet4 gmsh file")
@@ -711,12 +711,7 @@ fn the_plan_says_when_a_tet4_file_is_made_tet10() {
         ("gmsh_cube_tet10_binary.msh", false),
     ] {
         let (out, _dir) = run_output(&scene(mesh));
-        let stdout = String::from_utf8_lossy(&out.stdout);
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        let stdout = succeeded(&out);
         let line = stdout.lines().find(|l| l.contains("] mesh")).unwrap();
         assert!(line.contains("tet10 gmsh file"), "{line}");
         assert_eq!(line.contains(said), promoted, "{mesh}: {line}");
@@ -726,12 +721,7 @@ fn the_plan_says_when_a_tet4_file_is_made_tet10() {
         &scene("gmsh_cube_tet10_binary.msh"),
         &fixtures.join("gmsh_cube_tet4_binary.msh"),
     );
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stdout = succeeded(&out);
     let line = stdout.lines().find(|l| l.contains("] mesh")).unwrap();
     assert!(
         line.contains("given by --mesh") && line.contains(said),
@@ -745,12 +735,7 @@ fn the_plan_says_when_a_tet4_file_is_made_tet10() {
 #[test]
 fn a_sweep_prints_its_steps_while_cutting_apart_from_the_others() {
     let (out, _dir) = run_shipped("cut_progressive");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stdout = succeeded(&out);
     let line = |start: &str| {
         stdout
             .lines()
@@ -784,12 +769,7 @@ fn a_sweep_the_run_ends_before_its_end_says_so() {
         "type = \"dynamic\"\ndt = 0.01\nsteps = 3\n[[cut]]\nblade = [[0.0, -0.01, 0.1], [0.0, 0.07, 0.1]]\ntravel = [0.015, 0.0, 0.0]\nstart = 0.0\nend = 0.1",
     );
     let (out, _dir) = run_output(&text);
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let stdout = succeeded(&out);
     assert!(
         stdout.contains(
             "sweep 0.0000 → 0.1000 s (the run ends at 0.0300 s, with the blades still cutting"
@@ -897,12 +877,7 @@ fn a_blade_run_reports_its_steps_apart_from_its_events() {
         )
         .replace("levels = [[1, 2, 4]]", "levels = [[1, 2, 8]]");
     let (out, _dir) = run_output(&text);
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let stdout = succeeded(&out);
     let line = |start: &str| {
         stdout
             .lines()
