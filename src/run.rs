@@ -26,9 +26,11 @@ pub enum RunError {
     Static { file: String, source: StaticError },
     #[error("{file}: {source}")]
     Dynamic { file: String, source: DynamicError },
-    #[error("{file}: probe {index} at ({x}, {y}, {z}) lies outside the body")]
+    #[error("{file}: key `probe[{table}].points`: point {index} at ({x}, {y}, {z}) lies outside the body")]
     ProbeOutside {
         file: String,
+        /// The `[[probe]]` table and the point's place in its `points`.
+        table: usize,
         index: usize,
         x: f64,
         y: f64,
@@ -576,8 +578,10 @@ fn check_probes(scene: &Scene, mesh: &TetMesh) -> Result<(), RunError> {
     {
         Some(index) => {
             let p = scene.probes[index];
+            let (table, index) = scene.probe_key(index);
             Err(RunError::ProbeOutside {
                 file: scene.file.display().to_string(),
+                table,
                 index,
                 x: p.x,
                 y: p.y,
@@ -595,8 +599,10 @@ pub fn probe_values(scene: &Scene, result: &RunResult) -> Result<Vec<Vector3<f64
         .iter()
         .enumerate()
         .map(|(index, p)| {
+            let (table, index) = scene.probe_key(index);
             evaluate_at(&result.model, &locator, &result.d, p).ok_or(RunError::ProbeOutside {
                 file: scene.file.display().to_string(),
+                table,
                 index,
                 x: p.x,
                 y: p.y,

@@ -202,9 +202,18 @@ pub struct Scene {
     pub formulation: Formulation,
     pub analysis: Analysis,
     pub probes: Vec<Point3<f64>>,
+    /// Where each of `probes` was given: its `[[probe]]` table and its
+    /// place in that table's `points` (for errors naming the key).
+    pub probe_keys: Vec<(usize, usize)>,
 }
 
 impl Scene {
+    /// The `[[probe]]` table of probe `index` and its place in that table's
+    /// `points` (a scene built without keys: table 0, the index itself).
+    pub fn probe_key(&self, index: usize) -> (usize, usize) {
+        self.probe_keys.get(index).copied().unwrap_or((0, index))
+    }
+
     /// Reads and validates a case file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
         let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read {

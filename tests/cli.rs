@@ -162,7 +162,7 @@ fn bad_input_gives_one_line_errors_naming_the_key() {
         (GOOD.replace("type = \"static\"", "type = \"quasi\""), "analysis.type"),
         (GOOD.replace("levels = [[1, 2, 4]]", "levels = [[1, 0, 4]]"), "body.levels"),
         (GOOD.replace("[gravity]", "[gravity]\nacceleration2 = 1"), "gravity.acceleration2"),
-        (GOOD.replace("[[probe]]\npoints = [[0.0, 0.03, 0.2], [0.03, 0.06, 0.2]]", "[[probe]]\npoints = [[1.0, 0.03, 0.2]]"), "probe 0"),
+        (GOOD.replace("[[probe]]\npoints = [[0.0, 0.03, 0.2], [0.03, 0.06, 0.2]]", "[[probe]]\npoints = [[1.0, 0.03, 0.2]]"), "key `probe[0].points`: point 0"),
         (GOOD.replace("[[probe]]\npoints = [[0.0, 0.03, 0.2], [0.03, 0.06, 0.2]]", "[[probe]]\npoints = []"), "probe[0].points"),
         (GOOD.replace("density = 1070.0", "density = 1070.0\n[[cut]]\norigin = [0.0, 0.0, 0.1]\nu = [0.0, 0.0, 0.0]\nv = [0.0, 0.06, 0.0]"), "cut[0].v"),
         ("name = \"x\"\n[body\n".to_string(), "syntax"),
@@ -238,15 +238,18 @@ fn a_body_free_to_move_is_refused() {
 /// A probe outside the body is refused before the solve, and nothing is written.
 #[test]
 fn a_probe_outside_the_body_is_refused_before_anything_is_written() {
+    // The second point of the second [[probe]] table.
     let text = GOOD.replace(
         "points = [[0.0, 0.03, 0.2], [0.03, 0.06, 0.2]]",
-        "points = [[0.0, 0.03, 0.2], [0.03, 0.06, 0.25]]",
+        "points = [[0.0, 0.03, 0.2]]\n[[probe]]\npoints = [[0.03, 0.06, 0.2], [0.03, 0.06, 0.25]]",
     );
     let (out, dir) = run_output(&text);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
     assert!(
-        err.contains("case.toml") && err.contains("probe 1") && err.contains("0.25"),
+        err.contains("case.toml")
+            && err.contains("key `probe[1].points`: point 1 at")
+            && err.contains("0.25"),
         "{err}"
     );
     let stdout = String::from_utf8_lossy(&out.stdout);

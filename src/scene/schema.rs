@@ -575,6 +575,7 @@ pub fn validate(case: CaseFile, path: &Path) -> Result<Scene, SceneError> {
 
     // [[probe]]
     let mut probes = Vec::new();
+    let mut probe_keys = Vec::new();
     for (i, p) in case.probe.into_iter().enumerate() {
         if p.points.is_empty() {
             return Err(c.err(
@@ -582,8 +583,9 @@ pub fn validate(case: CaseFile, path: &Path) -> Result<Scene, SceneError> {
                 "is empty: a [[probe]] lists at least one point",
             ));
         }
-        for x in p.points {
+        for (k, x) in p.points.into_iter().enumerate() {
             probes.push(Point3::from(c.finite3(&format!("probe[{i}].points"), x)?));
+            probe_keys.push((i, k));
         }
     }
 
@@ -601,6 +603,7 @@ pub fn validate(case: CaseFile, path: &Path) -> Result<Scene, SceneError> {
         formulation,
         analysis,
         probes,
+        probe_keys,
     })
 }
 
