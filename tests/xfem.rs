@@ -781,3 +781,75 @@ fn a_tet10_corner_too_small_to_rotate_alone_turns_with_its_other_side() {
     println!("exact tangent vs J of central differences {rel:.2e}");
     assert!(rel <= 1e-6, "{rel:e}");
 }
+
+/// A slit from an outer face into a vessel (a hole through the block), on a
+/// face layer of an unstructured gmsh mesh: X-FEM on the mesh with its slit
+/// nodes shared (`hole_block_slit_merged.msh`, the patch through the slit
+/// and on into the hole) equals FEM on the same mesh with them duplicated
+/// (`hole_block_slit_split.msh`, `tests/fixtures/hole_block.py`) at probes on
+/// both lips and away from them: Tet4 and Tet10 (the files made 10-node),
+/// linear and corotational. The cut ends on the curved wall of the hole,
+/// so it has no front (no tip-enriched node).
+#[test]
+fn a_slit_into_a_hole_on_a_face_layer_equals_the_mesh_with_its_nodes_duplicated() {
+    let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures");
+    let scene = |mesh: &str, cut: &str, element: &str, formulation: &str| {
+        let text = format!(
+            r#"name = "hole_block"
+[body]
+mesh = "{mesh}"
+element = "{element}"
+[material]
+young = 2.0e4
+poisson = 0.45
+density = 1050.0
+{cut}
+[[fix]]
+min = [-inf, -inf, -inf]
+max = [inf, 0.0, inf]
+[[fix]]
+min = [-inf, 0.04, -inf]
+max = [inf, inf, inf]
+displacement = [0.001, 0.004, 0.0]
+[gravity]
+acceleration = [0.0, 0.0, -9.81]
+[analysis]
+type = "static"
+formulation = "{formulation}"
+[[probe]]
+points = [[0.0, 0.0204, 0.01], [0.0, 0.0202, 0.01], [0.014, 0.0204, 0.0], [0.014, 0.0202, 0.02], [0.04, 0.02, 0.01], [0.01, 0.03, 0.02]]
+"#
+        );
+        Scene::parse(&text, &fixtures.join("hole_block.toml")).unwrap()
+    };
+    let slit =
+        "[[cut]]\norigin = [-0.001, 0.0203, -0.001]\nu = [0.0, 0.0, 0.022]\nv = [0.0215, 0.0, 0.0]";
+    for element in ["tet4", "tet10"] {
+        for formulation in ["linear", "corotational"] {
+            let probes = |s: &Scene| -> (Vec<Vector3<f64>>, RunResult) {
+                let result = solve_scene(s, 0, None, false).unwrap();
+                (xfem_cut::run::probe_values(s, &result).unwrap(), result)
+            };
+            let (x, xr) = probes(&scene(
+                "hole_block_slit_merged.msh",
+                slit,
+                element,
+                formulation,
+            ));
+            let (f, _) = probes(&scene(
+                "hole_block_slit_split.msh",
+                "",
+                element,
+                formulation,
+            ));
+            let cut = xr.model.cut.as_ref().expect("the slit cuts");
+            let (heaviside, tip) = (cut.n_heaviside(), cut.n_tip());
+            let worst = common::largest_difference(&f, &x);
+            println!("{element} {formulation}: {heaviside} Heaviside-enriched nodes, {tip} tip; X-FEM vs the split mesh {worst:.1e}");
+            assert!(heaviside > 0 && tip == 0, "{heaviside} {tip}");
+            // The lips open (the upper one follows the pulled face).
+            assert!(f[0].y - f[1].y > 1e-3, "{:?} {:?}", f[0], f[1]);
+            assert!(worst <= 1e-10, "{worst:e}");
+        }
+    }
+}
