@@ -2,7 +2,7 @@
 REFS_PY := /usr/bin/python3
 REFS_DEBS := python3-dolfinx python3-gmsh python3-meshio python3-scipy python3-matplotlib libopenblas0-pthread python3-venv openmpi-bin
 
-.PHONY: refs-env refs refs-test refs-uniform pictures oblique
+.PHONY: refs-env refs refs-test refs-uniform pictures oblique hole
 
 # Debian's FEniCSx, gmsh and meshio (with OpenBLAS for a fair MUMPS), installed when missing.
 refs-env:
@@ -35,6 +35,13 @@ refs-uniform: refs-env
 # `make report`): refs/out/oblique/summary.txt. `make oblique SEEDS="11 14"` runs those scenes.
 oblique: build refs-env
 	cd refs/oblique && $(REFS_PY) run.py $(SEEDS)
+
+# A slit towards a vessel (a block around a hole, the front 5 mm from its wall) against a
+# remeshed reference graded at the front and an ungraded one: X-FEM tip / geometric tip /
+# extend and pre-cut FEM, Tet4 and Tet10, per level (refs/hole/run.py; about 3 min on 2
+# cores; not part of `make report`): refs/out/hole/summary.txt.
+hole: build refs-env
+	cd refs/hole && $(REFS_PY) run.py
 
 # Pictures (headless): X-FEM structured level 2 Tet4 with its cut opened beside the graded
 # reference, reports/pictures/<case>.png; remade when the solver, the case or the reference changed.
