@@ -41,16 +41,24 @@ VARIANTS = {"tip": "", "geo": "tip_radius = 0.004\n", "ext": 'front = "extend"\n
 
 def mesh(path: Path, h: float, slit: bool, h_front: float | None = None) -> None:
     """The block meshed at size h (graded to h_front within 1-8 mm of the front); with the slit,
-    its nodes behind the front duplicated for the elements above it."""
-    if path.exists():
-        return
+    its nodes behind the front duplicated for the elements above it (cached)."""
+    if not path.exists():
+        write_block(path, h, XF if slit else None, duplicate=slit, h_front=h_front)
+
+
+def write_block(path: Path, h: float, slit_to: float | None, duplicate: bool,
+                h_front: float | None = None) -> None:
+    """Writes the block meshed at size h, with the slit from x = 0 to x = `slit_to` as a face layer
+    of the mesh (none: without it), graded to h_front within 1-8 mm of the slit's edge; with
+    `duplicate`, the slit's nodes (those inside the body short of its edge) duplicated for the
+    elements above it. MSH 4.1 ASCII as meshio writes it (tests/fixtures/hole_block.py too)."""
     gmsh.initialize()
     gmsh.option.setNumber("General.Terminal", 0)
     box = gmsh.model.occ.addBox(0, 0, 0, 0.04, 0.04, 0.02)
     hole = gmsh.model.occ.addCylinder(0.02, 0.02, -0.01, 0, 0, 0.04, 0.005)
     body, _ = gmsh.model.occ.cut([(3, box)], [(3, hole)])
-    if slit:
-        r = gmsh.model.occ.addRectangle(0, 0, 0, XF, 0.02)
+    if slit_to is not None:
+        r = gmsh.model.occ.addRectangle(0, 0, 0, slit_to, 0.02)
         gmsh.model.occ.rotate([(2, r)], 0, 0, 0, 1, 0, 0, np.pi / 2)
         gmsh.model.occ.translate([(2, r)], 0, Y, 0)
         gmsh.model.occ.fragment(body, [(2, r)])
@@ -59,7 +67,7 @@ def mesh(path: Path, h: float, slit: bool, h_front: float | None = None) -> None
     gmsh.option.setNumber("Mesh.MeshSizeMin", (h_front or h) / 3)
     if h_front is not None:
         front = [c for _, c in gmsh.model.getEntities(1)
-                 if np.allclose(gmsh.model.occ.getCenterOfMass(1, c)[:2], [XF, Y], atol=1e-9)]
+                 if np.allclose(gmsh.model.occ.getCenterOfMass(1, c)[:2], [slit_to, Y], atol=1e-9)]
         f = gmsh.model.mesh.field.add("Distance")
         gmsh.model.mesh.field.setNumbers(f, "CurvesList", front)
         gmsh.model.mesh.field.setNumber(f, "NumPointsPerCurve", 200)
@@ -81,8 +89,9 @@ def mesh(path: Path, h: float, slit: bool, h_front: float | None = None) -> None
     remap = -np.ones(len(points), dtype=np.int64)
     remap[used] = np.arange(len(used))
     points, tets = points[used], remap[tets]
-    if slit:
-        on_slit = (np.abs(points[:, 1] - Y) < 1e-9) & (points[:, 0] < XF - 1e-9)
+    if duplicate:
+        # (the hole's wall at y = Y is at x = 15.0009 mm: a slit into it ends there)
+        on_slit = (np.abs(points[:, 1] - Y) < 1e-9) & (points[:, 0] < min(slit_to - 1e-9, 0.0152))
         above = points[tets].mean(axis=1)[:, 1] > Y
         twin = -np.ones(len(points), dtype=np.int64)
         nodes = np.flatnonzero(on_slit)
